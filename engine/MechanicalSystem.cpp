@@ -1,0 +1,110 @@
+#include <Eigen/Dense>
+#include "engine/MechanicalSystem.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+
+namespace viscera {
+
+std::string Diverged::str() const {
+  std::ostringstream s;
+  s << "diverged at step " << step << " (t = " << time << "): " << reason;
+  if (!object.empty()) s << " [" << object << "]";
+  auto list = [&s](const char* what, const std::vector<int>& ids) {
+    if (ids.empty()) return;
+    s << "; " << what << " ";
+    for (size_t i = 0; i < ids.size() && i < 20; ++i) s << (i ? "," : "") << ids[i];
+    if (ids.size() > 20) s << ",... (" << ids.size() << " in all)";
+  };
+  list("elements", elements);
+  list("nodes", nodes);
+  return s.str();
+}
+
+MechanicalSystem::MechanicalSystem(Component& owner) {
+  Node& node = owner.node();
+  state_ = node.find<MechanicalObject>();
+  if (!state_) throw owner.error("needs a MechanicalObject in its node");
+  owner.scene().initComponent(*state_);
+  const int n = state_->size();
+  mass_ = Eigen::VectorXd::Zero(n);
+  bool hasMass = false;
+  std::vector<Component*> comps;
+  node.collect(comps);
+  for (Component* c : comps) {
+    if (c == &owner || dynamic_cast<OdeSolver*>(c) || dynamic_cast<Observer*>(c)) continue;
+    owner.scene().initComponent(*c);
+    if (auto* m = dynamic_cast<Mass*>(c); m && &m->mstate() == state_) {
+      mass_ += m->nodeMass();
+      hasMass = true;
+    }
+    if (auto* f = dynamic_cast<ForceField*>(c); f && &f->mstate() == state_) forces_.push_back(f);
+    if (auto* p = dynamic_cast<ProjectiveConstraint*>(c); p && &p->mstate() == state_)
+      fixed_.insert(fixed_.end(), p->fixedNodes().begin(), p->fixedNodes().end());
+  }
+  if (!hasMass) throw owner.error("no mass acts on MechanicalObject '" + state_->name() + "' (add UniformMass, DiagonalMass or MeshMatrixMass)");
+  std::sort(fixed_.begin(), fixed_.end());
+  fixed_.erase(std::unique(fixed_.begin(), fixed_.end()), fixed_.end());
+}
+
+int MechanicalSystem::nodes() const { return state_->size(); }
+
+void MechanicalSystem::computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) {
+  f.setZero(3, x.cols());
+  for (ForceField* ff : forces_) ff->addForce(x, v, f);
+}
+
+void MechanicalSystem::addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor) const {
+  for (ForceField* ff : forces_) ff->addDForce(dx, df, factor);
+}
+
+void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K) {
+  if (!patternReady_ || K.blockRows() != nodes()) {
+    std::vector<std::pair<int, int>> pairs;
+    for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
+    K.setPattern(nodes(), pairs);
+    for (ForceField* ff : forces_) ff->prepareAssembly(K);
+    patternReady_ = true;
+  }
+  K.setZero();
+  for (ForceField* ff : forces_) ff->addStiffness(K, 1.0);
+}
+
+void MechanicalSystem::project(Eigen::Matrix3Xd& v) const {
+  for (int i : fixed_) v.col(i).setZero();
+}
+
+std::optional<Diverged> MechanicalSystem::check(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, int step,
+                                                double time) const {
+  Diverged d;
+  d.step = step;
+  d.time = time;
+  d.object = state_->name();
+  for (int i = 0; i < x.cols(); ++i)
+    if (!x.col(i).allFinite() || !v.col(i).allFinite()) d.nodes.push_back(i);
+  if (!d.nodes.empty()) {
+    d.reason = "non-finite position or velocity";
+    return d;
+  }
+  for (ForceField* ff : forces_) {
+    auto bad = ff->invertedElements(x);
+    d.elements.insert(d.elements.end(), bad.begin(), bad.end());
+  }
+  if (!d.elements.empty()) {
+    d.reason = "inverted elements";
+    return d;
+  }
+  return std::nullopt;
+}
+
+double MechanicalSystem::potentialEnergy(const Eigen::Matrix3Xd& x) const {
+  double e = 0;
+  for (ForceField* ff : forces_) e += ff->potentialEnergy(x);
+  return e;
+}
+
+}  // namespace viscera

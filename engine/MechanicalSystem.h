@@ -1,0 +1,50 @@
+// The mechanical system of one solver node: its MechanicalObject with the masses, force fields
+// and projective constraints acting on it. Global assembly and the health check live here.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <vector>
+
+#include "engine/Roles.h"
+#include "solvers/linear/BlockSparseMatrix.h"
+
+namespace viscera {
+
+class Component;
+class MechanicalObject;
+
+class MechanicalSystem {
+ public:
+  // Collects what acts on the MechanicalObject of `owner`'s node. Throws a clear error if the
+  // node has no MechanicalObject or no mass.
+  explicit MechanicalSystem(Component& owner);
+
+  MechanicalObject& state() const { return *state_; }
+  int nodes() const;
+  const Eigen::VectorXd& nodeMass() const { return mass_; }  // #nodes
+  const std::vector<int>& fixedNodes() const { return fixed_; }
+  const std::vector<ForceField*>& forceFields() const { return forces_; }
+
+  // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x.
+  void computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f);
+  // df += factor * K dx, matrix-free.
+  void addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor) const;
+  // K (as the force fields report it at their last linearisation) into `K`; the pattern is built
+  // on first use and kept.
+  void assembleStiffness(BlockSparseMatrix& K);
+  // Zeroes the rows of fixed nodes.
+  void project(Eigen::Matrix3Xd& v) const;
+  // Non-finite values and inverted elements at (x, v), as a failure, or nothing.
+  std::optional<Diverged> check(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, int step, double time) const;
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const;
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<ForceField*> forces_;
+  std::vector<int> fixed_;
+  Eigen::VectorXd mass_;
+  bool patternReady_ = false;
+};
+
+}  // namespace viscera

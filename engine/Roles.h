@@ -1,0 +1,100 @@
+// The small interfaces a component implements to take part in the step loop. A component is a
+// Component (attributes, links, init) and one or more of these roles.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace viscera {
+
+class BlockSparseMatrix;
+class MechanicalObject;
+
+using TetList = Eigen::Matrix<int, 4, Eigen::Dynamic>;  // 4 x #tets
+using HexList = std::vector<std::array<int, 8>>;
+
+// Supplies rest geometry: points and/or elements (loaders, grids, containers).
+class Topology {
+ public:
+  virtual ~Topology() = default;
+  virtual const Eigen::Matrix3Xd& points() const = 0;  // 3 x #points, may be empty
+  virtual const TetList& tetrahedra() const = 0;       // may be empty
+  virtual const HexList& hexahedra() const { static const HexList none; return none; }
+  // Cells per axis for structured grids (SOFA's swapping pattern needs it); zero otherwise.
+  virtual std::array<int, 3> gridCells() const { return {0, 0, 0}; }
+};
+
+// Forces on the nodes of one MechanicalObject. `addForce` also linearises at x; `addDForce`
+// and `addStiffness` use that linearisation (K = df/dx as the solver uses it).
+class ForceField {
+ public:
+  virtual ~ForceField() = default;
+  virtual MechanicalObject& mstate() const = 0;
+  // f += f(x, v).
+  virtual void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) = 0;
+  // df += kFactor * K dx.
+  virtual void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {}
+  // Node pairs coupled by K (for the sparsity pattern).
+  virtual void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {}
+  // Called after the pattern is fixed, to precompute value slots.
+  virtual void prepareAssembly(const BlockSparseMatrix& K) {}
+  // K += kFactor * (the force field's K).
+  virtual void addStiffness(BlockSparseMatrix& K, double kFactor) const {}
+  // Potential energy at x (0 when the field has none).
+  virtual double potentialEnergy(const Eigen::Matrix3Xd& x) const { return 0.0; }
+  // Elements that are inverted at x (for the health check).
+  virtual std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const { return {}; }
+};
+
+// Lumped (diagonal) mass; also applies gravity.
+class Mass {
+ public:
+  virtual ~Mass() = default;
+  virtual MechanicalObject& mstate() const = 0;
+  virtual const Eigen::VectorXd& nodeMass() const = 0;  // #nodes
+};
+
+// Projective constraints: nodes whose motion is prescribed (zero rows in the system).
+class ProjectiveConstraint {
+ public:
+  virtual ~ProjectiveConstraint() = default;
+  virtual MechanicalObject& mstate() const = 0;
+  virtual const std::vector<int>& fixedNodes() const = 0;
+};
+
+// A numerical failure of a step: where, when and what.
+struct Diverged {
+  int step = 0;
+  double time = 0.0;
+  std::string reason;
+  std::string object;         // the MechanicalObject or solver concerned
+  std::vector<int> elements;  // element ids (inverted elements)
+  std::vector<int> nodes;     // node ids (non-finite values)
+  std::string str() const;
+};
+
+// Integrates the mechanical objects of its node (and sub-nodes) over one time step.
+class OdeSolver {
+ public:
+  virtual ~OdeSolver() = default;
+  // Advances from time t to t + dt; returns a failure instead of writing bad state.
+  virtual std::optional<Diverged> step(double t, double dt, int stepIndex) = 0;
+  // Statistics of the last step (linear iterations, residual), for summaries.
+  virtual int lastLinearIterations() const { return 0; }
+};
+
+// Reads the state at the end of a step (exporters, recorders, metrics).
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  // Called once before the first step (t = start time), after every step, and at the end.
+  virtual void begin(double t) {}
+  virtual void observe(double t, int stepIndex) = 0;
+  virtual void end(double t, int stepIndex) {}
+};
+
+}  // namespace viscera

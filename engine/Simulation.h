@@ -1,0 +1,40 @@
+// The step loop: drivers -> collision -> each solver node integrates -> mappings -> health
+// check -> observers. One explicit loop, no visitors.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "engine/Roles.h"
+#include "engine/core/Scene.h"
+
+namespace viscera {
+
+class Simulation {
+ public:
+  // Initialises the scene if needed and collects its solvers and observers.
+  explicit Simulation(Scene& scene);
+
+  // Observers see the initial state.
+  void begin();
+  // One time step; on failure the state stays at the last good step and nothing is observed.
+  std::optional<Diverged> step();
+  // Observers finish (write indices, close files).
+  void end();
+
+  double time() const { return time_; }
+  int steps() const { return steps_; }
+  Scene& scene() { return scene_; }
+  // Linear iterations of the last step, summed over solvers.
+  int lastLinearIterations() const;
+
+ private:
+  Scene& scene_;
+  std::vector<OdeSolver*> solvers_;
+  std::vector<Observer*> observers_;
+  double time_ = 0;
+  int steps_ = 0;
+  bool begun_ = false, ended_ = false;
+};
+
+}  // namespace viscera

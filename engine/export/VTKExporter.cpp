@@ -1,0 +1,105 @@
+// VTKExporter: writes the MechanicalObject of its node as a .vtu series with a .pvd index
+// (ParaView), with point fields displacement and velocity and the cell field vonMises.
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/fem/TetrahedronFEMForceField.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/mesh/Mesh.h"
+
+namespace viscera {
+
+namespace {
+
+class VTKExporter : public Component, public Observer {
+ public:
+  using Component::Component;
+  void init() override {
+    state_ = &contextState(*this);
+    fem_ = node().find<TetrahedronFEMForceField>();
+    if (fem_) scene().initComponent(*fem_);
+    every_ = static_cast<int>(attrs_.integer("exportEveryNumberOfSteps"));
+    std::istringstream in(attrs_.str("fields"));
+    for (std::string f; in >> f;) {
+      if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force")
+        throw error("fields", "unknown field '" + f + "' (choose from displacement, velocity, force, vonMises)");
+      if (f == "vonMises" && !fem_) throw error("fields", "vonMises needs a TetrahedronFEMForceField in the node");
+      fields_.push_back(f);
+    }
+  }
+  void begin(double t) override {
+    base_ = scene().outputPath(attrs_.isSet("filename") ? attrs_.str("filename") : name());
+    std::filesystem::path dir = std::filesystem::path(base_).parent_path();
+    std::error_code ec;
+    if (!dir.empty()) std::filesystem::create_directories(dir, ec);
+    if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
+    if (attrs_.boolean("exportAtBegin")) write(t, 0);
+  }
+  void observe(double t, int step) override {
+    if (every_ > 0 && step % every_ == 0) write(t, step);
+  }
+  void end(double t, int step) override {
+    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step);
+  }
+
+ private:
+  void write(double t, int step) {
+    const MechanicalObject& s = *state_;
+    std::vector<io::DataArray> pd, cd;
+    for (const auto& f : fields_) {
+      if (f == "vonMises") {
+        Eigen::VectorXd vm = fem_->vonMises(s.x);
+        cd.push_back({"vonMises", 1, std::vector<double>(vm.data(), vm.data() + vm.size())});
+        continue;
+      }
+      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(s.x - s.x0) : f == "velocity" ? s.v : s.f;
+      pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
+    }
+    char num[32];
+    std::snprintf(num, sizeof num, "_%06d.vtu", step);
+    const std::string file = base_ + num;
+    static const TetList none;
+    io::writeVtu(file, s.x, fem_ ? fem_->tetrahedra() : none, pd, cd);
+    written_.push_back({t, std::filesystem::path(file).filename().string()});
+    lastStep_ = step;
+    // The index is rewritten each time so that an interrupted run still opens in ParaView.
+    io::writePvd(base_ + ".pvd", written_);
+  }
+
+  MechanicalObject* state_ = nullptr;
+  TetrahedronFEMForceField* fem_ = nullptr;
+  int every_ = 1;
+  int lastStep_ = -1;
+  std::vector<std::string> fields_;
+  std::string base_;
+  std::vector<std::pair<double, std::string>> written_;
+};
+
+}  // namespace
+
+void registerVTKExporter(Registry& r) {
+  ComponentSpec s;
+  s.name = "VTKExporter";
+  s.category = "output";
+  s.doc = "Writes the node's MechanicalObject (with the tetrahedra of its FEM force field) as a .vtu series "
+          "and a .pvd index for ParaView. Files are <filename>_<step>.vtu in the output folder (--out).";
+  s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name)"));
+  s.add(AttrSpec::integer("exportEveryNumberOfSteps").def("1").atLeast(0).help("write every N steps (0: only at begin/end)"));
+  s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
+  s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
+  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises"));
+  s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always .vtu"));
+  s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
+  s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::boolean("triangles").def("false").help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::boolean("tetras").def("true").help("accepted for SOFA compatibility; tetrahedra are written"));
+  s.add(AttrSpec::boolean("overwrite").def("false").help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<VTKExporter>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

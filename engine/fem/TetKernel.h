@@ -1,0 +1,75 @@
+// Per-element kernels of linear tetrahedra: rest data, the element frames of the corotational
+// methods (and their exact derivatives), the linear elastic force and stresses. Fixed-size
+// Eigen types only; no knowledge of scenes or assembly.
+#pragma once
+
+#include <Eigen/Core>
+
+namespace viscera::fem {
+
+using Mat34 = Eigen::Matrix<double, 3, 4>;  // one column per node
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+
+enum class Method { Small, Large, Polar };
+
+struct Lame {
+  double lambda = 0, mu = 0;
+  static Lame fromYoungPoisson(double E, double nu) {
+    return {E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))};
+  }
+};
+
+// Rest data of one element, in its rest frame (world frame for `Small`).
+struct ElementRest {
+  Mat34 X;        // rest node positions in the element frame
+  Mat34 G;        // shape-function gradients in that frame (column k: grad N_k)
+  double volume;  // |rest volume|
+  double sign;    // sign of the rest volume (orientation), +1 or -1
+  Lame lame;
+};
+
+// The element frame: a rotation whose rows are the frame's axes (world -> element).
+// Large (SOFA's "large"): x along p1 - p0, z = x cross (p2 - p0), y = z cross x.
+Eigen::Matrix3d frameLarge(const Mat34& p);
+// Polar (SOFA's "polar"): the orthogonal polar factor of the matrix whose rows are the edges
+// p1 - p0, p2 - p0, p3 - p0.
+Eigen::Matrix3d framePolar(const Mat34& p);
+Eigen::Matrix3d frame(Method m, const Mat34& p);
+// The orthogonal factor Q of A = Q S (S symmetric positive definite), by Higham's scaled
+// Newton iteration.
+Eigen::Matrix3d polarFactor(const Eigen::Matrix3d& A);
+// Derivative of frame(m, p) with respect to coordinate `dir` of node `node`.
+Eigen::Matrix3d frameDerivative(Method m, const Mat34& p, const Eigen::Matrix3d& R, int node, int dir);
+
+// Rest data from rest positions (world) for a method. Throws std::domain_error if degenerate.
+ElementRest restElement(Method m, const Mat34& Xworld, const Lame& lame);
+
+// Positions of the nodes in the element frame: small Y = x, large Y = R (x - x0), polar Y = R x.
+inline Mat34 localPositions(Method m, const Eigen::Matrix3d& R, const Mat34& x) {
+  if (m == Method::Small) return x;
+  if (m == Method::Large) return R * (x.colwise() - x.col(0));
+  return R * x;
+}
+
+// Linear elastic nodal forces in the element frame for local displacements U: f = -V sigma G.
+inline Mat34 elasticForce(const ElementRest& e, const Mat34& U) {
+  const Eigen::Matrix3d H = U * e.G.transpose();
+  const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
+  const Eigen::Matrix3d sigma = 2.0 * e.lame.mu * eps + e.lame.lambda * eps.trace() * Eigen::Matrix3d::Identity();
+  return -e.volume * sigma * e.G;
+}
+
+// Cauchy stress (linear) for local displacements U.
+Eigen::Matrix3d stress(const ElementRest& e, const Mat34& U);
+double vonMises(const Eigen::Matrix3d& sigma);
+
+// World-frame element force for current positions x (3 x 4); also returns the frame R.
+Mat34 elementForce(Method m, const ElementRest& e, const Mat34& x, Eigen::Matrix3d& R);
+// The 12 x 12 stiffness the solver uses (SOFA's: -R^T K0 R, no derivative of R).
+Mat12 elementStiffness(Method m, const ElementRest& e, const Eigen::Matrix3d& R);
+// The exact derivative of elementForce with respect to x (includes the derivative of R).
+Mat12 elementTangent(Method m, const ElementRest& e, const Mat34& x);
+// Strain energy 1/2 u^T K0 u of the rotated displacement.
+double elementEnergy(Method m, const ElementRest& e, const Mat34& x);
+
+}  // namespace viscera::fem

@@ -1,0 +1,183 @@
+#include <Eigen/Dense>
+#include "engine/fem/TetrahedronFEMForceField.h"
+
+#include <stdexcept>
+
+#include "engine/Coloring.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/GridSplit.h"
+#include "solvers/linear/BlockSparseMatrix.h"
+
+namespace viscera {
+
+using fem::Mat12;
+using fem::Mat34;
+
+void TetrahedronFEMForceField::init() {
+  state_ = &contextState(*this);
+  const std::string& m = attrs_.str("method");
+  method_ = m == "small" ? fem::Method::Small : m == "polar" ? fem::Method::Polar : fem::Method::Large;
+  exact_ = attrs_.boolean("exactTangent");
+  Topology& topo = contextTopology(*this);
+  if (topo.tetrahedra().cols() > 0) {
+    tets_ = topo.tetrahedra();
+  } else {
+    // Directly on hexahedra, SOFA's force field applies the mirroring tests of the swapping
+    // split but always the straight vertex order.
+    auto cells = topo.gridCells();
+    if (cells[0] == 0) cells = {2, 1, 1};
+    tets_ = splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
+  }
+  const int n = state_->size();
+  for (int e = 0; e < tets_.cols(); ++e)
+    for (int k = 0; k < 4; ++k)
+      if (tets_(k, e) < 0 || tets_(k, e) >= n)
+        throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(tets_(k, e)) +
+                    ", but the MechanicalObject has " + std::to_string(n) + " nodes");
+
+  const auto& E = attrs_.reals("youngModulus");
+  const double nu = attrs_.real("poissonRatio");
+  if (E.size() != 1 && static_cast<long>(E.size()) != tets_.cols())
+    throw error("youngModulus", "expected one value or one per tetrahedron (" + std::to_string(tets_.cols()) + "), got " +
+                                    std::to_string(E.size()));
+  rest_.resize(tets_.cols());
+  rot_.assign(tets_.cols(), Eigen::Matrix3d::Identity());
+  for (int e = 0; e < tets_.cols(); ++e) {
+    const Mat34 X = gather(state_->x0, e);
+    try {
+      rest_[e] = fem::restElement(method_, X, fem::Lame::fromYoungPoisson(E.size() == 1 ? E[0] : E[e], nu));
+    } catch (const std::domain_error&) {
+      throw error("tetrahedron " + std::to_string(e) + " is degenerate (zero volume)");
+    }
+    rot_[e] = fem::frame(method_, X);
+  }
+  colors_ = colorElements(tets_, n);
+}
+
+Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {
+  Mat34 p;
+  for (int k = 0; k < 4; ++k) p.col(k) = x.col(tets_(k, e));
+  return p;
+}
+
+void TetrahedronFEMForceField::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
+  if (exact_) xLast_ = x;
+  forEachColored(colors_, [&](int e) {
+    const Mat34 fe = fem::elementForce(method_, rest_[e], gather(x, e), rot_[e]);
+    for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
+  });
+}
+
+Mat12 TetrahedronFEMForceField::stiffnessOf(int e) const {
+  if (exact_ && method_ != fem::Method::Small) return fem::elementTangent(method_, rest_[e], gather(xLast_, e));
+  return fem::elementStiffness(method_, rest_[e], rot_[e]);
+}
+
+void TetrahedronFEMForceField::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {
+  if (exact_ && method_ != fem::Method::Small) {
+    forEachColored(colors_, [&](int e) {
+      const Mat34 d = gather(dx, e);
+      Eigen::Matrix<double, 12, 1> r = stiffnessOf(e) * Eigen::Map<const Eigen::Matrix<double, 12, 1>>(d.data());
+      for (int k = 0; k < 4; ++k) df.col(tets_(k, e)) += kFactor * r.segment<3>(3 * k);
+    });
+    return;
+  }
+  // K dx per element without forming K: with h = R^T G and M = h dX^T,
+  // (K dx)_i = -V [lambda tr(M) h_i + mu (M + M^T) h_i].
+  forEachColored(colors_, [&](int e) {
+    const fem::ElementRest& r = rest_[e];
+    const Mat34 h = rot_[e].transpose() * r.G;
+    const Mat34 d = gather(dx, e);
+    const Eigen::Matrix3d M = h * d.transpose();
+    const Eigen::Matrix3d S = r.lame.lambda * M.trace() * Eigen::Matrix3d::Identity() + r.lame.mu * (M + M.transpose());
+    const Mat34 out = (-kFactor * r.volume) * (S * h);
+    for (int k = 0; k < 4; ++k) df.col(tets_(k, e)) += out.col(k);
+  });
+}
+
+void TetrahedronFEMForceField::stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {
+  for (int e = 0; e < tets_.cols(); ++e)
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) pairs.push_back({tets_(i, e), tets_(j, e)});
+}
+
+void TetrahedronFEMForceField::prepareAssembly(const BlockSparseMatrix& K) {
+  slots_.resize(tets_.cols());
+  for (int e = 0; e < tets_.cols(); ++e)
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) slots_[e][4 * i + j] = K.slot(tets_(i, e), tets_(j, e));
+}
+
+void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor) const {
+  if (slots_.size() != static_cast<size_t>(tets_.cols())) throw std::logic_error("addStiffness before prepareAssembly");
+  forEachColored(colors_, [&](int e) {
+    if (exact_ && method_ != fem::Method::Small) {
+      const Mat12 Ke = stiffnessOf(e);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) K.block(slots_[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
+      return;
+    }
+    // Blocks -V [lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I], h = R^T G.
+    const fem::ElementRest& r = rest_[e];
+    const Mat34 h = rot_[e].transpose() * r.G;
+    const double a = -kFactor * r.volume;
+    const Eigen::Matrix4d gg = r.G.transpose() * r.G;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        auto B = K.block(slots_[e][4 * i + j]);
+        B.noalias() += (a * r.lame.lambda) * h.col(i) * h.col(j).transpose();
+        B.noalias() += (a * r.lame.mu) * h.col(j) * h.col(i).transpose();
+        B.diagonal().array() += a * r.lame.mu * gg(i, j);
+      }
+  });
+}
+
+double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) const {
+  double s = 0;
+  for (int e = 0; e < tets_.cols(); ++e) s += fem::elementEnergy(method_, rest_[e], gather(x, e));
+  return s;
+}
+
+std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3Xd& x) const {
+  std::vector<int> bad;
+  for (int e = 0; e < tets_.cols(); ++e) {
+    const Mat34 p = gather(x, e);
+    Eigen::Matrix3d E;
+    E << p.col(1) - p.col(0), p.col(2) - p.col(0), p.col(3) - p.col(0);
+    // The rest frame of small/large/polar preserves orientation, so compare with the rest sign.
+    if (!(E.determinant() * rest_[e].sign > 0.0)) bad.push_back(e);
+  }
+  return bad;
+}
+
+Eigen::VectorXd TetrahedronFEMForceField::vonMises(const Eigen::Matrix3Xd& x) const {
+  Eigen::VectorXd out(tets_.cols());
+  for (int e = 0; e < tets_.cols(); ++e) {
+    const Mat34 p = gather(x, e);
+    const Eigen::Matrix3d R = fem::frame(method_, p);
+    out[e] = fem::vonMises(fem::stress(rest_[e], fem::localPositions(method_, R, p) - rest_[e].X));
+  }
+  return out;
+}
+
+void registerTetrahedronFEM(Registry& r) {
+  ComponentSpec s;
+  s.name = "TetrahedronFEMForceField";
+  s.aliases = {"TetrahedralCorotationalFEMForceField"};
+  s.category = "forcefield";
+  s.doc = "Linear elastic tetrahedra. method=small: linear; large: corotational with the element frame built "
+          "from its edges (SOFA's default); polar: corotational with the polar decomposition of the edge "
+          "matrix. The implicit solve uses R^T K0 R as SOFA does, or the exact tangent with exactTangent.";
+  s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).help("Young's modulus: one value, or one per tetrahedron"));
+  s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
+  s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
+  s.add(AttrSpec::boolean("exactTangent").def("false").help("use the exact derivative of the corotational force (Newton)"));
+  s.add(AttrSpec::link("topology").help("tetrahedral topology (default: the last one in the node, or the grid)"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronFEMForceField>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

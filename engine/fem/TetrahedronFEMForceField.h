@@ -1,0 +1,54 @@
+// Linear tetrahedral FEM with SOFA's small, large (corotational, edge frame) and polar methods.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "engine/Roles.h"
+#include "engine/core/Component.h"
+#include "engine/fem/TetKernel.h"
+
+namespace viscera {
+
+class Registry;
+
+class TetrahedronFEMForceField : public Component, public ForceField {
+ public:
+  using Component::Component;
+  void init() override;
+  MechanicalObject& mstate() const override { return *state_; }
+
+  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override;
+  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
+  void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
+  void prepareAssembly(const BlockSparseMatrix& K) override;
+  void addStiffness(BlockSparseMatrix& K, double kFactor) const override;
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override;
+  std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const override;
+
+  fem::Method method() const { return method_; }
+  const TetList& tetrahedra() const { return tets_; }
+  // Von Mises stress per element at x.
+  Eigen::VectorXd vonMises(const Eigen::Matrix3Xd& x) const;
+  // Uses the exact tangent (with the derivative of the rotation) instead of SOFA's R^T K0 R.
+  bool exactTangent() const { return exact_; }
+  void setExactTangent(bool on) { exact_ = on; }
+
+ private:
+  fem::Mat34 gather(const Eigen::Matrix3Xd& x, int e) const;
+  fem::Mat12 stiffnessOf(int e) const;
+
+  MechanicalObject* state_ = nullptr;
+  fem::Method method_ = fem::Method::Large;
+  bool exact_ = false;
+  TetList tets_;
+  std::vector<fem::ElementRest> rest_;
+  std::vector<Eigen::Matrix3d> rot_;       // frame of each element at the last addForce
+  Eigen::Matrix3Xd xLast_;                 // positions of the last addForce (exact tangent)
+  std::vector<std::vector<int>> colors_;
+  std::vector<std::array<int, 16>> slots_; // block slots of each element in the assembled matrix
+};
+
+void registerTetrahedronFEM(Registry& r);
+
+}  // namespace viscera

@@ -1,0 +1,170 @@
+// FixedConstraint (projective), BoxROI (index selection) and ConstantForceField.
+#include <algorithm>
+
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+
+namespace viscera {
+
+namespace {
+
+class FixedConstraint : public Component, public ProjectiveConstraint {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  const std::vector<int>& fixedNodes() const override { return nodes_; }
+  void init() override {
+    state_ = &contextState(*this);
+    if (attrs_.boolean("fixAll")) {
+      nodes_.resize(state_->size());
+      for (int i = 0; i < state_->size(); ++i) nodes_[i] = i;
+      return;
+    }
+    nodes_ = linkedInts("indices");
+    for (int i : nodes_)
+      if (i < 0 || i >= state_->size())
+        throw error("indices", "node " + std::to_string(i) + " is out of range (the MechanicalObject has " +
+                                   std::to_string(state_->size()) + " nodes)");
+    std::sort(nodes_.begin(), nodes_.end());
+    nodes_.erase(std::unique(nodes_.begin(), nodes_.end()), nodes_.end());
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name != "indices") return false;
+    out.values.assign(nodes_.begin(), nodes_.end());
+    return true;
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<int> nodes_;
+};
+
+class BoxROI : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    Eigen::Matrix3Xd X;
+    if (attrs_.isSet("position")) {
+      auto p = linkedReals("position");
+      X = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, p.size() / 3);
+    } else {
+      X = contextState(*this).x0;  // SOFA tests the rest positions
+    }
+    const auto& b = attrs_.reals("box");
+    for (int i = 0; i < X.cols(); ++i) {
+      for (size_t k = 0; k + 6 <= b.size(); k += 6) {
+        bool in = true;
+        for (int a = 0; a < 3; ++a) {
+          double lo = std::min(b[k + a], b[k + a + 3]), hi = std::max(b[k + a], b[k + a + 3]);
+          if (X(a, i) < lo || X(a, i) > hi) in = false;
+        }
+        if (in) {
+          indices_.push_back(i);
+          break;
+        }
+      }
+    }
+    if (indices_.empty() && attrs_.boolean("strict"))
+      throw error("box", "selects no point (set strict=\"false\" to allow an empty selection)");
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name != "indices") return false;
+    out.values.assign(indices_.begin(), indices_.end());
+    return true;
+  }
+
+ private:
+  std::vector<int> indices_;
+};
+
+class ConstantForceField : public Component, public ForceField {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  void init() override {
+    state_ = &contextState(*this);
+    if (attrs_.isSet("indices")) {
+      nodes_ = linkedInts("indices");
+    } else {
+      for (int i = 0; i < state_->size(); ++i) nodes_.push_back(i);
+    }
+    for (int i : nodes_)
+      if (i < 0 || i >= state_->size()) throw error("indices", "node " + std::to_string(i) + " is out of range");
+    forces_ = Eigen::Matrix3Xd::Zero(3, nodes_.size());
+    if (attrs_.isSet("totalForce")) {
+      const auto& t = attrs_.reals("totalForce");
+      if (nodes_.empty()) throw error("totalForce", "no node to apply the force to");
+      for (size_t k = 0; k < nodes_.size(); ++k) forces_.col(k) = Eigen::Vector3d(t[0], t[1], t[2]) / nodes_.size();
+    } else if (attrs_.isSet("forces")) {
+      const auto& f = attrs_.reals("forces");
+      if (f.size() == 3) {
+        for (size_t k = 0; k < nodes_.size(); ++k) forces_.col(k) = Eigen::Vector3d(f[0], f[1], f[2]);
+      } else if (f.size() == 3 * nodes_.size()) {
+        forces_ = Eigen::Map<const Eigen::Matrix3Xd>(f.data(), 3, nodes_.size());
+      } else {
+        throw error("forces", "expected one force or one per index (" + std::to_string(nodes_.size()) + "), got " +
+                                  std::to_string(f.size() / 3));
+      }
+    } else {
+      throw error("set forces or totalForce");
+    }
+  }
+  void addForce(const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
+    for (size_t k = 0; k < nodes_.size(); ++k) f.col(nodes_[k]) += forces_.col(k);
+  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
+    double e = 0;
+    for (size_t k = 0; k < nodes_.size(); ++k) e -= forces_.col(k).dot(x.col(nodes_[k]));
+    return e;
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<int> nodes_;
+  Eigen::Matrix3Xd forces_;
+};
+
+}  // namespace
+
+void registerConstraints(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "FixedConstraint";
+    s.aliases = {"FixedProjectiveConstraint"};
+    s.category = "constraint";
+    s.doc = "Holds nodes at their positions: their rows are removed from the implicit system.";
+    s.add(AttrSpec::ints("indices").def("").atLeast(0).linked().help("fixed nodes (or a link such as @box.indices)"));
+    s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<FixedConstraint>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "BoxROI";
+    s.category = "engine";
+    s.doc = "Selects the nodes inside one or more axis-aligned boxes (bounds inclusive, rest positions); output "
+            "field `indices`.";
+    s.add(AttrSpec::reals("box").def("0 0 0 1 1 1").multipleOf(6).unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax, repeated for several boxes"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points to test (default: rest positions of the node's MechanicalObject)"));
+    s.add(AttrSpec::boolean("strict").def("false").help("fail if the box selects nothing"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<BoxROI>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "ConstantForceField";
+    s.category = "forcefield";
+    s.doc = "Constant forces on nodes: one per index, one for all, or a total spread evenly.";
+    s.add(AttrSpec::ints("indices").atLeast(0).linked().help("nodes (default: all)"));
+    s.add(AttrSpec::reals("forces").multipleOf(3).unit(Dimension::force()).help("force per node, or one force for all"));
+    s.add(AttrSpec::reals("totalForce", 3).unit(Dimension::force()).help("total force, split evenly over the nodes"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<ConstantForceField>(c); };
+    r.add(std::move(s));
+  }
+}
+
+}  // namespace viscera

@@ -1,0 +1,130 @@
+#include "engine/mechanics/MechanicalObject.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+
+namespace viscera {
+
+namespace {
+
+Eigen::Matrix3Xd toPoints(const std::vector<double>& v) {
+  Eigen::Matrix3Xd p(3, v.size() / 3);
+  for (size_t i = 0; i < v.size(); ++i) p(i % 3, i / 3) = v[i];
+  return p;
+}
+
+}  // namespace
+
+void MechanicalObject::init() {
+  if (attrs_.isSet("position")) {
+    x = toPoints(linkedReals("position"));
+  } else {
+    // As SOFA: positions come from the first topology in the context that carries points.
+    for (const Node* n = &node(); n && x.cols() == 0; n = n->parent())
+      for (const auto& c : n->components()) {
+        auto* t = dynamic_cast<Topology*>(c.get());
+        if (!t || c.get() == this) continue;
+        scene().initComponent(*c);
+        if (t->points().cols() > 0) {
+          x = t->points();
+          break;
+        }
+      }
+  }
+  if (x.cols() == 0) throw error("has no positions: set `position` or put a loader or grid topology in its node");
+  // Placement: scale, then rotate (degrees, x then y then z), then translate.
+  const auto& s = attrs_.reals("scale3d");
+  const auto& r = attrs_.reals("rotation");
+  const auto& t = attrs_.reals("translation");
+  Eigen::Matrix3d R = (Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                       Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                       Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX()))
+                          .toRotationMatrix();
+  Eigen::Vector3d S(s[0], s[1], s[2]), T(t[0], t[1], t[2]);
+  for (int i = 0; i < x.cols(); ++i) x.col(i) = R * (S.asDiagonal() * x.col(i)) + T;
+  x0 = x;
+  if (attrs_.isSet("rest_position")) {
+    x0 = toPoints(linkedReals("rest_position"));
+    if (x0.cols() != x.cols())
+      throw error("rest_position", "has " + std::to_string(x0.cols()) + " points, position has " + std::to_string(x.cols()));
+  }
+  v = Eigen::Matrix3Xd::Zero(3, x.cols());
+  if (attrs_.isSet("velocity")) {
+    auto vv = linkedReals("velocity");
+    if (vv.size() == 3) {
+      for (int i = 0; i < v.cols(); ++i) v.col(i) = Eigen::Vector3d(vv[0], vv[1], vv[2]);
+    } else if (static_cast<int>(vv.size()) == 3 * x.cols()) {
+      v = toPoints(vv);
+    } else {
+      throw error("velocity", "expected one velocity or one per node (" + std::to_string(x.cols()) + "), got " +
+                                  std::to_string(vv.size() / 3));
+    }
+  }
+  f = Eigen::Matrix3Xd::Zero(3, x.cols());
+}
+
+bool MechanicalObject::field(const std::string& name, FieldValue& out) const {
+  const Eigen::Matrix3Xd* m = nullptr;
+  if (name == "position") m = &x;
+  else if (name == "rest_position") m = &x0;
+  else if (name == "velocity") m = &v;
+  if (!m) return false;
+  out.values.assign(m->data(), m->data() + m->size());
+  return true;
+}
+
+MechanicalObject& contextState(Component& c, const std::string& linkAttr) {
+  MechanicalObject* m = nullptr;
+  if (c.spec().find(linkAttr) && c.attrs().isSet(linkAttr)) {
+    m = dynamic_cast<MechanicalObject*>(c.linkedComponent(linkAttr));
+    if (!m) throw c.error(linkAttr, "does not link to a MechanicalObject");
+  } else {
+    m = c.node().findInContext<MechanicalObject>();
+    if (!m) throw c.error("no MechanicalObject in its node or above");
+  }
+  c.scene().initComponent(*m);
+  return *m;
+}
+
+Topology& contextTopology(Component& c, const std::string& attr, bool allowHexa) {
+  if (c.spec().find(attr) && c.attrs().isSet(attr)) {
+    auto* t = dynamic_cast<Topology*>(c.linkedComponent(attr));
+    if (!t) throw c.error(attr, "does not link to a topology (loader, grid or container)");
+    return *t;
+  }
+  Topology* hexa = nullptr;
+  for (const Node* n = &c.node(); n; n = n->parent()) {
+    const auto& comps = n->components();
+    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
+      auto* t = dynamic_cast<Topology*>(it->get());
+      if (!t) continue;
+      c.scene().initComponent(**it);
+      if (t->tetrahedra().cols() > 0) return *t;
+      if (!hexa && !t->hexahedra().empty()) hexa = t;
+    }
+    if (hexa && allowHexa) return *hexa;
+  }
+  throw c.error("no topology with tetrahedra in its node or above");
+}
+
+void registerMechanicalObject(Registry& r) {
+  ComponentSpec s;
+  s.name = "MechanicalObject";
+  s.category = "state";
+  s.doc = "Degrees of freedom of a body (Vec3d): positions, velocities, rest positions. Positions default to "
+          "those of the topology (loader or grid) in the same node.";
+  s.add(AttrSpec::choice("template", {"Vec3d", "Vec3", "Vec3f"}).def("Vec3d").help("state type; Vec3f is computed in double precision"));
+  s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("initial positions x y z ... (or a link)"));
+  s.add(AttrSpec::reals("rest_position").multipleOf(3).unit(Dimension::length()).linked().help("rest positions (default: initial positions)"));
+  s.add(AttrSpec::reals("velocity").multipleOf(3).unit(Dimension::velocity()).linked().help("initial velocity: one for all nodes or one per node"));
+  s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the initial positions"));
+  s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
+  s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors applied first"));
+  s.factory = [](BuildContext& ctx) { return std::make_unique<MechanicalObject>(ctx); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

@@ -1,0 +1,36 @@
+// The degrees of freedom of a deformable body: positions, velocities and rest positions (Vec3d).
+#pragma once
+
+#include <Eigen/Core>
+
+#include "engine/Roles.h"
+#include "engine/core/Component.h"
+
+namespace viscera {
+
+class Registry;
+
+class MechanicalObject : public Component {
+ public:
+  explicit MechanicalObject(BuildContext& ctx) : Component(ctx) {}
+  void init() override;
+  bool field(const std::string& name, FieldValue& out) const override;
+
+  int size() const { return static_cast<int>(x.cols()); }
+
+  Eigen::Matrix3Xd x;   // positions, 3 x #nodes
+  Eigen::Matrix3Xd v;   // velocities
+  Eigen::Matrix3Xd x0;  // rest positions
+  Eigen::Matrix3Xd f;   // last total force (for outputs)
+};
+
+void registerMechanicalObject(Registry& r);
+
+// The MechanicalObject a component acts on: its `mstate` link if set, else the nearest in its
+// context. Throws a clear error if there is none.
+MechanicalObject& contextState(Component& c, const std::string& linkAttr = "mstate");
+// The topology a component uses: its link `attr` if set, else the last topology in its context
+// that has tetrahedra (or hexahedra if `allowHexa`). Throws if there is none.
+Topology& contextTopology(Component& c, const std::string& attr = "topology", bool allowHexa = true);
+
+}  // namespace viscera

@@ -1,0 +1,62 @@
+#include "engine/topology/GridSplit.h"
+
+#include <utility>
+
+namespace viscera {
+
+Eigen::Matrix3Xd gridPoints(const std::array<int, 3>& n, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  Eigen::Matrix3Xd p(3, n[0] * n[1] * n[2]);
+  Eigen::Vector3d step, origin = lo;
+  for (int a = 0; a < 3; ++a) {
+    step[a] = n[a] > 1 ? (hi[a] - lo[a]) / (n[a] - 1) : 0.0;
+    // One node on an axis sits at the middle of [lo, hi] (x and y) as in SOFA.
+    if (n[a] == 1 && a < 2) origin[a] = 0.5 * (lo[a] + hi[a]);
+  }
+  int idx = 0;
+  for (int k = 0; k < n[2]; ++k)
+    for (int j = 0; j < n[1]; ++j)
+      for (int i = 0; i < n[0]; ++i) p.col(idx++) = origin + Eigen::Vector3d(i * step[0], j * step[1], k * step[2]);
+  return p;
+}
+
+HexList gridHexahedra(const std::array<int, 3>& n) {
+  HexList h;
+  auto id = [&](int i, int j, int k) { return i + n[0] * (j + n[1] * k); };
+  for (int k = 0; k + 1 < n[2]; ++k)
+    for (int j = 0; j + 1 < n[1]; ++j)
+      for (int i = 0; i + 1 < n[0]; ++i)
+        h.push_back({id(i, j, k), id(i + 1, j, k), id(i + 1, j + 1, k), id(i, j + 1, k), id(i, j, k + 1),
+                     id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)});
+  return h;
+}
+
+TetList splitHexahedra(const HexList& hexa, int nx, int ny, bool swapping, bool fixOrientation) {
+  static const int straight[6][4] = {{0, 5, 1, 6}, {0, 1, 3, 6}, {1, 3, 6, 2}, {6, 3, 0, 7}, {6, 7, 0, 5}, {7, 5, 4, 0}};
+  static const int mirrored[6][4] = {{0, 5, 6, 1}, {0, 1, 6, 3}, {1, 3, 2, 6}, {6, 3, 7, 0}, {6, 7, 5, 0}, {7, 5, 0, 4}};
+  TetList t(4, 6 * hexa.size());
+  for (size_t i = 0; i < hexa.size(); ++i) {
+    std::array<int, 8> c = hexa[i];
+    bool swapped = false;
+    if (swapping) {
+      const size_t ix = static_cast<size_t>(nx), iy = static_cast<size_t>(ny);
+      if (!((i % ix) & 1)) {
+        std::swap(c[0], c[1]); std::swap(c[4], c[5]); std::swap(c[3], c[2]); std::swap(c[7], c[6]);
+        swapped = !swapped;
+      }
+      if (((i / ix) % iy) & 1) {
+        std::swap(c[4], c[7]); std::swap(c[5], c[6]); std::swap(c[1], c[2]); std::swap(c[0], c[3]);
+        swapped = !swapped;
+      }
+      if ((i / (ix * iy)) & 1) {
+        std::swap(c[4], c[0]); std::swap(c[5], c[1]); std::swap(c[6], c[2]); std::swap(c[7], c[3]);
+        swapped = !swapped;
+      }
+    }
+    const int(*pattern)[4] = swapped && fixOrientation ? mirrored : straight;
+    for (int k = 0; k < 6; ++k)
+      for (int v = 0; v < 4; ++v) t(v, 6 * i + k) = c[pattern[k][v]];
+  }
+  return t;
+}
+
+}  // namespace viscera

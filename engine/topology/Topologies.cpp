@@ -1,0 +1,210 @@
+// Topologies: RegularGridTopology, Hexa2TetraTopologicalMapping, TetrahedronSetTopologyContainer
+// and the mesh loaders (MeshGmshLoader, MeshVTKLoader).
+#include <Eigen/Geometry>
+#include <cmath>
+#include <filesystem>
+
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/GridSplit.h"
+#include "io/mesh/Mesh.h"
+
+namespace viscera {
+
+namespace {
+
+const Eigen::Matrix3Xd kNoPoints;
+const TetList kNoTets;
+
+class RegularGridTopology : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    auto n = attrs_.ints("n");
+    const auto& lo = attrs_.reals("min");
+    const auto& hi = attrs_.reals("max");
+    for (int a = 0; a < 3; ++a) n_[a] = n[a];
+    points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]));
+    hexa_ = gridHexahedra(n_);
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  const HexList& hexahedra() const override { return hexa_; }
+  std::array<int, 3> gridCells() const override {
+    return {std::max(n_[0] - 1, 1), std::max(n_[1] - 1, 1), std::max(n_[2] - 1, 1)};
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  std::array<int, 3> n_{};
+  Eigen::Matrix3Xd points_;
+  HexList hexa_;
+};
+
+class TetrahedronSetTopologyContainer : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    // A topological mapping may fill this container: run it first.
+    for (auto* m : scene().all<TopologyFiller>())
+      if (m->fills(*this)) scene().initComponent(dynamic_cast<Component&>(*m));
+    if (filled_) return;
+    if (attrs_.isSet("src")) {
+      auto* t = dynamic_cast<Topology*>(linkedComponent("src"));
+      if (!t) throw error("src", "does not link to a loader or topology");
+      points_ = t->points();
+      tets_ = t->tetrahedra();
+    }
+    if (attrs_.isSet("position")) {
+      auto p = linkedReals("position");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, p.size() / 3);
+    }
+    if (attrs_.isSet("tetrahedra")) {
+      auto t = linkedInts("tetrahedra");
+      tets_ = Eigen::Map<const TetList>(t.data(), 4, t.size() / 4);
+    }
+    if (tets_.cols() > 0 && points_.cols() > 0) {
+      io::VolumeMesh m{points_, tets_, {}};
+      try {
+        io::checkTetMesh(m, name());
+      } catch (const Error& e) {
+        throw error(e.what());
+      }
+    }
+  }
+  void fill(const TetList& t) {
+    tets_ = t;
+    filled_ = true;
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return tets_; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "tetrahedra") out.values.assign(tets_.data(), tets_.data() + tets_.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  Eigen::Matrix3Xd points_;
+  TetList tets_;
+  bool filled_ = false;
+};
+
+class Hexa2TetraTopologicalMapping : public Component, public TopologyFiller {
+ public:
+  using Component::Component;
+  bool fills(const Component& c) const override {
+    const AttrValue& o = attrs_.get("output");
+    return o.set && &scene().resolve(*this, o.text, o.loc, "Hexa2TetraTopologicalMapping.output") == &c;
+  }
+  void init() override {
+    auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
+    if (!in || in->hexahedra().empty()) throw error("input", "does not link to a topology with hexahedra");
+    const AttrValue& o = attrs_.get("output");
+    auto* out = dynamic_cast<TetrahedronSetTopologyContainer*>(&scene().resolve(*this, o.text, o.loc, "Hexa2TetraTopologicalMapping.output"));
+    if (!out) throw error("output", "does not link to a TetrahedronSetTopologyContainer");
+    auto cells = in->gridCells();
+    // SOFA uses nx = 2, ny = 1 when the input is not a grid.
+    if (cells[0] == 0) cells = {2, 1, 1};
+    out->fill(splitHexahedra(in->hexahedra(), cells[0], cells[1], attrs_.boolean("swapping")));
+  }
+};
+
+class MeshLoader : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    std::string path = scene().resolvePath(attrs_.str("filename"));
+    if (!std::filesystem::exists(path)) throw error("filename", "mesh file '" + path + "' does not exist");
+    try {
+      mesh_ = io::readVolumeMesh(path);
+      if (mesh_.tets.cols() > 0) io::checkTetMesh(mesh_, path);
+    } catch (const Error& e) {
+      throw error("filename", e.what());
+    }
+    const auto& s = attrs_.reals("scale3d");
+    const auto& r = attrs_.reals("rotation");
+    const auto& t = attrs_.reals("translation");
+    Eigen::Matrix3d R = (Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                         Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                         Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX()))
+                            .toRotationMatrix();
+    for (int i = 0; i < mesh_.points.cols(); ++i)
+      mesh_.points.col(i) = R * (Eigen::Vector3d(s[0], s[1], s[2]).asDiagonal() * mesh_.points.col(i)) +
+                            Eigen::Vector3d(t[0], t[1], t[2]);
+  }
+  const Eigen::Matrix3Xd& points() const override { return mesh_.points; }
+  const TetList& tetrahedra() const override { return mesh_.tets; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(mesh_.points.data(), mesh_.points.data() + mesh_.points.size());
+    else if (name == "tetrahedra") out.values.assign(mesh_.tets.data(), mesh_.tets.data() + mesh_.tets.size());
+    else if (name == "triangles") out.values.assign(mesh_.triangles.data(), mesh_.triangles.data() + mesh_.triangles.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  io::VolumeMesh mesh_;
+};
+
+}  // namespace
+
+void registerTopologies(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "RegularGridTopology";
+    s.category = "topology";
+    s.doc = "A regular grid of n[0] x n[1] x n[2] nodes over [min, max] (x fastest, then y, then z) and its hexahedra.";
+    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per axis"));
+    s.add(AttrSpec::reals("min", 3).def("0 0 0").unit(Dimension::length()).help("lower corner"));
+    s.add(AttrSpec::reals("max", 3).def("1 1 1").unit(Dimension::length()).help("upper corner"));
+    s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "TetrahedronSetTopologyContainer";
+    s.aliases = {"TetrahedronSetTopology", "MeshTopology"};
+    s.category = "topology";
+    s.doc = "Holds tetrahedra: from a loader (`src`), explicit lists, or a topological mapping writing to it.";
+    s.add(AttrSpec::link("src").help("a loader to take points and tetrahedra from"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
+    s.add(AttrSpec::ints("tetrahedra").multipleOf(4).atLeast(0).linked().help("node indices, four per tetrahedron"));
+    s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "Hexa2TetraTopologicalMapping";
+    s.category = "topology";
+    s.doc = "Splits every hexahedron of `input` into six tetrahedra written to `output`, in SOFA's order; "
+            "`swapping` mirrors alternate cells so that the diagonals match across faces.";
+    s.add(AttrSpec::link("input").req().help("topology with hexahedra (e.g. a RegularGridTopology)"));
+    s.add(AttrSpec::link("output").req().help("the TetrahedronSetTopologyContainer to fill"));
+    s.add(AttrSpec::boolean("swapping").def("false").help("alternate the split between neighbouring cells"));
+    s.factory = [](BuildContext& c) { return std::make_unique<Hexa2TetraTopologicalMapping>(c); };
+    r.add(std::move(s));
+  }
+  for (const char* name : {"MeshGmshLoader", "MeshVTKLoader"}) {
+    ComponentSpec s;
+    s.name = name;
+    s.category = "loader";
+    s.doc = std::string(name) == "MeshGmshLoader"
+                ? "Reads a Gmsh .msh mesh (legacy $NOD/$ELM, v2 and v4 ASCII); fields position, tetrahedra, triangles."
+                : "Reads a VTK mesh (.vtk legacy ASCII, .vtu); fields position, tetrahedra, triangles.";
+    s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file"));
+    s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation of the points"));
+    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
+    s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors applied first"));
+    s.factory = [](BuildContext& c) { return std::make_unique<MeshLoader>(c); };
+    r.add(std::move(s));
+  }
+}
+
+}  // namespace viscera

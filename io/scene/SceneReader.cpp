@@ -1,0 +1,111 @@
+#include "io/scene/SceneReader.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <pugixml.hpp>
+#include <sstream>
+
+namespace viscera::io {
+
+namespace {
+
+// Maps byte offsets to 1-based line and column.
+class LineIndex {
+ public:
+  explicit LineIndex(const std::string& text) {
+    starts_.push_back(0);
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n') starts_.push_back(i + 1);
+  }
+  void locate(size_t offset, int& line, int& col) const {
+    auto it = std::upper_bound(starts_.begin(), starts_.end(), offset);
+    size_t l = static_cast<size_t>(it - starts_.begin());
+    line = static_cast<int>(l);
+    col = static_cast<int>(offset - starts_[l - 1]) + 1;
+  }
+
+ private:
+  std::vector<size_t> starts_;
+};
+
+struct Converter {
+  const std::string& text;
+  const std::string& file;
+  LineIndex lines;
+
+  SourceLoc at(size_t offset) const {
+    SourceLoc loc{file, 0, 0};
+    lines.locate(offset, loc.line, loc.col);
+    return loc;
+  }
+
+  // pugixml's offset_debug points at the element name; step back to '<'.
+  size_t elementStart(const pugi::xml_node& n) const {
+    size_t o = static_cast<size_t>(n.offset_debug());
+    while (o > 0 && text[o] != '<') --o;
+    return o;
+  }
+
+  // Offset of attribute `name` inside the start tag that begins at `tagStart`.
+  size_t attributeOffset(size_t tagStart, const std::string& name) const {
+    size_t end = text.find('>', tagStart);
+    if (end == std::string::npos) end = text.size();
+    size_t p = tagStart;
+    while (true) {
+      p = text.find(name, p);
+      if (p == std::string::npos || p >= end) return tagStart;
+      bool leftOk = p > 0 && std::isspace(static_cast<unsigned char>(text[p - 1]));
+      size_t q = p + name.size();
+      while (q < end && std::isspace(static_cast<unsigned char>(text[q]))) ++q;
+      if (leftOk && q < end && text[q] == '=') return p;
+      p += name.size();
+    }
+  }
+
+  ElementDesc convert(const pugi::xml_node& n) const {
+    ElementDesc el;
+    el.tag = n.name();
+    size_t start = elementStart(n);
+    el.loc = at(start);
+    for (const auto& a : n.attributes()) {
+      AttrDesc d;
+      d.name = a.name();
+      d.value = a.value();
+      d.loc = at(attributeOffset(start, d.name));
+      el.attrs.push_back(std::move(d));
+    }
+    for (const auto& c : n.children())
+      if (c.type() == pugi::node_element) el.children.push_back(convert(c));
+    return el;
+  }
+};
+
+}  // namespace
+
+SceneDesc parseSceneText(const std::string& text, const std::string& file) {
+  pugi::xml_document doc;
+  pugi::xml_parse_result r = doc.load_buffer(text.data(), text.size(), pugi::parse_default, pugi::encoding_utf8);
+  Converter conv{text, file, LineIndex(text)};
+  if (!r) {
+    size_t off = r.offset < 0 ? 0 : static_cast<size_t>(r.offset);
+    throw Error(conv.at(std::min(off, text.size())), std::string("malformed XML: ") + r.description());
+  }
+  pugi::xml_node root = doc.document_element();
+  if (!root) throw Error(SourceLoc{file, 1, 1}, "the file has no XML element");
+  SceneDesc desc;
+  desc.file = file;
+  desc.directory = std::filesystem::path(file).parent_path().string();
+  desc.root = conv.convert(root);
+  return desc;
+}
+
+SceneDesc readScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(SourceLoc{path, 0, 0}, "cannot open the scene file");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return parseSceneText(s.str(), path);
+}
+
+}  // namespace viscera::io

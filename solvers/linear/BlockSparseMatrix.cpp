@@ -1,0 +1,78 @@
+#include "solvers/linear/BlockSparseMatrix.h"
+
+#include <algorithm>
+#include <tbb/parallel_for.h>
+
+namespace viscera {
+
+void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int, int>>& pairs) {
+  n_ = nBlocks;
+  std::vector<std::vector<int>> rows(n_);
+  for (int i = 0; i < n_; ++i) rows[i].push_back(i);
+  for (const auto& [i, j] : pairs) {
+    rows[i].push_back(j);
+    rows[j].push_back(i);
+  }
+  rowStart_.assign(n_ + 1, 0);
+  cols_.clear();
+  diag_.assign(n_, -1);
+  for (int i = 0; i < n_; ++i) {
+    auto& r = rows[i];
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+    rowStart_[i] = static_cast<int>(cols_.size());
+    for (int j : r) {
+      if (j == i) diag_[i] = static_cast<int>(cols_.size());
+      cols_.push_back(j);
+    }
+  }
+  rowStart_[n_] = static_cast<int>(cols_.size());
+  values_.assign(9 * cols_.size(), 0.0);
+}
+
+int BlockSparseMatrix::slot(int i, int j) const {
+  auto b = cols_.begin() + rowStart_[i], e = cols_.begin() + rowStart_[i + 1];
+  auto it = std::lower_bound(b, e, j);
+  return it != e && *it == j ? static_cast<int>(it - cols_.begin()) : -1;
+}
+
+void BlockSparseMatrix::setZero() { std::fill(values_.begin(), values_.end(), 0.0); }
+
+void BlockSparseMatrix::scale(double a) {
+  for (double& v : values_) v *= a;
+}
+
+void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
+  auto rowsRange = [&](int r0, int r1) {
+    for (int i = r0; i < r1; ++i) {
+      Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+      for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
+        acc.noalias() += block(s) * x.segment<3>(3 * cols_[s]);
+      y.segment<3>(3 * i) = acc;
+    }
+  };
+  if (n_ < 512) {
+    rowsRange(0, n_);
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, n_, 256),
+                    [&](const tbb::blocked_range<int>& r) { rowsRange(r.begin(), r.end()); });
+}
+
+void BlockSparseMatrix::constrainNodes(const std::vector<int>& nodes) {
+  std::vector<char> fixed(n_, 0);
+  for (int i : nodes) fixed[i] = 1;
+  for (int i = 0; i < n_; ++i)
+    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
+      if (fixed[i] || fixed[cols_[s]]) block(s).setZero();
+  for (int i : nodes) block(diag_[i]).setIdentity();
+}
+
+Eigen::MatrixXd BlockSparseMatrix::toDense() const {
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(3 * n_, 3 * n_);
+  for (int i = 0; i < n_; ++i)
+    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s) d.block<3, 3>(3 * i, 3 * cols_[s]) = block(s);
+  return d;
+}
+
+}  // namespace viscera

@@ -1,0 +1,48 @@
+// A square matrix of 3x3 blocks in compressed block rows, with both triangles stored. The
+// pattern is built once (from node pairs); values are refreshed every step in place.
+#pragma once
+
+#include <Eigen/Core>
+#include <utility>
+#include <vector>
+
+namespace viscera {
+
+class BlockSparseMatrix {
+ public:
+  // Builds the pattern for `nBlocks` block rows from (i, j) node pairs; both (i, j) and (j, i)
+  // and every diagonal block are included.
+  void setPattern(int nBlocks, const std::vector<std::pair<int, int>>& pairs);
+
+  int blockRows() const { return n_; }
+  int rows() const { return 3 * n_; }
+  int nonZeroBlocks() const { return static_cast<int>(cols_.size()); }
+  // Index of block (i, j) in the value array, or -1 if it is not in the pattern.
+  int slot(int i, int j) const;
+  int diagonalSlot(int i) const { return diag_[i]; }
+
+  void setZero();
+  // Block at `slot` (column-major 3x3).
+  Eigen::Map<Eigen::Matrix3d> block(int s) { return Eigen::Map<Eigen::Matrix3d>(values_.data() + 9 * s); }
+  Eigen::Map<const Eigen::Matrix3d> block(int s) const { return Eigen::Map<const Eigen::Matrix3d>(values_.data() + 9 * s); }
+  double* values() { return values_.data(); }
+  const double* values() const { return values_.data(); }
+  const std::vector<int>& rowStart() const { return rowStart_; }  // #blockRows + 1
+  const std::vector<int>& cols() const { return cols_; }          // #nonZeroBlocks
+
+  // y = A x (x, y of size 3 * blockRows), in parallel over block rows.
+  void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const;
+  // A = a * A (values only).
+  void scale(double a);
+  // Replaces block rows and columns of `nodes` by identity rows/columns (projective constraints).
+  void constrainNodes(const std::vector<int>& nodes);
+  // Dense copy, for tests and small problems.
+  Eigen::MatrixXd toDense() const;
+
+ private:
+  int n_ = 0;
+  std::vector<int> rowStart_, cols_, diag_;
+  std::vector<double> values_;
+};
+
+}  // namespace viscera

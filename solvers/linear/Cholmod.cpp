@@ -1,0 +1,111 @@
+#include <cholmod.h>
+
+#include <stdexcept>
+
+#include "solvers/linear/LinearSolver.h"
+
+namespace viscera {
+
+struct CholmodSolver::Impl {
+  cholmod_common common;
+  cholmod_sparse* A = nullptr;     // lower triangle, scalar CSC, pattern fixed once analysed
+  cholmod_factor* L = nullptr;
+  std::vector<int> blockToValue;   // for each stored scalar entry: index into the block values
+  std::vector<int> rowStart, cols; // pattern the analysis was made for
+
+  Impl() {
+    cholmod_start(&common);
+    common.supernodal = CHOLMOD_AUTO;
+    common.final_ll = false;  // keep LDL^T
+  }
+  ~Impl() {
+    if (L) cholmod_free_factor(&L, &common);
+    if (A) cholmod_free_sparse(&A, &common);
+    cholmod_finish(&common);
+  }
+
+  // Builds the scalar lower-triangle CSC for the block pattern and the map from its entries
+  // into the block value array.
+  void buildPattern(const BlockSparseMatrix& M) {
+    if (L) cholmod_free_factor(&L, &common);
+    if (A) cholmod_free_sparse(&A, &common);
+    const int n = M.rows();
+    // Count lower-triangle scalar entries per scalar column.
+    std::vector<int> colCount(n, 0);
+    const auto& rs = M.rowStart();
+    const auto& cs = M.cols();
+    // The matrix is symmetric: block row i lists block columns j; the scalar column 3j+b
+    // receives rows 3i+a with 3i+a >= 3j+b.
+    for (int i = 0; i < M.blockRows(); ++i)
+      for (int s = rs[i]; s < rs[i + 1]; ++s) {
+        int j = cs[s];
+        if (j > i) continue;
+        for (int b = 0; b < 3; ++b)
+          for (int a = 0; a < 3; ++a)
+            if (3 * i + a >= 3 * j + b) colCount[3 * j + b]++;
+      }
+    size_t nnz = 0;
+    for (int c : colCount) nnz += c;
+    A = cholmod_allocate_sparse(n, n, nnz, true, true, -1, CHOLMOD_REAL, &common);
+    int* Ap = static_cast<int*>(A->p);
+    int* Ai = static_cast<int*>(A->i);
+    Ap[0] = 0;
+    for (int c = 0; c < n; ++c) Ap[c + 1] = Ap[c] + colCount[c];
+    std::vector<int> fill(Ap, Ap + n);
+    blockToValue.assign(nnz, 0);
+    // Block rows are visited in increasing order, so row indices in each column come out sorted.
+    for (int i = 0; i < M.blockRows(); ++i)
+      for (int s = rs[i]; s < rs[i + 1]; ++s) {
+        int j = cs[s];
+        if (j > i) continue;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) {
+            if (3 * i + a < 3 * j + b) continue;
+            int col = 3 * j + b;
+            int k = fill[col]++;
+            Ai[k] = 3 * i + a;
+            blockToValue[k] = 9 * s + 3 * b + a;  // column-major block storage
+          }
+      }
+    rowStart = rs;
+    cols = cs;
+  }
+};
+
+CholmodSolver::CholmodSolver() : impl_(new Impl()) {}
+CholmodSolver::~CholmodSolver() { delete impl_; }
+
+bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) {
+  Impl& d = *impl_;
+  if (!d.A || d.rowStart != M.rowStart() || d.cols != M.cols()) {
+    d.buildPattern(M);
+    d.L = cholmod_analyze(d.A, &d.common);
+    ++analyses_;
+    if (!d.L) {
+      message = "CHOLMOD analysis failed";
+      return false;
+    }
+  }
+  double* Ax = static_cast<double*>(d.A->x);
+  const double* vals = M.values();
+  for (size_t k = 0; k < d.blockToValue.size(); ++k) Ax[k] = vals[d.blockToValue[k]];
+  if (!cholmod_factorize(d.A, d.L, &d.common) || d.common.status != CHOLMOD_OK) {
+    message = d.common.status == CHOLMOD_NOT_POSDEF ? "matrix is not positive definite (CHOLMOD)"
+                                                    : "CHOLMOD factorization failed";
+    return false;
+  }
+  return true;
+}
+
+void CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  Impl& d = *impl_;
+  cholmod_dense* B = cholmod_allocate_dense(b.size(), 1, b.size(), CHOLMOD_REAL, &d.common);
+  std::copy(b.data(), b.data() + b.size(), static_cast<double*>(B->x));
+  cholmod_dense* X = cholmod_solve(CHOLMOD_A, d.L, B, &d.common);
+  x.resize(b.size());
+  std::copy(static_cast<double*>(X->x), static_cast<double*>(X->x) + b.size(), x.data());
+  cholmod_free_dense(&X, &d.common);
+  cholmod_free_dense(&B, &d.common);
+}
+
+}  // namespace viscera

@@ -1,0 +1,71 @@
+// Linear solvers for the implicit step: conjugate gradient (assembled or matrix-free) and sparse
+// LDL^T through CHOLMOD. The ODE solver hands them a LinearProblem each step.
+#pragma once
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+
+#include "solvers/linear/BlockSparseMatrix.h"
+
+namespace viscera {
+
+struct LinearProblem {
+  // The assembled, constrained matrix, or nullptr when only the operator is available.
+  const BlockSparseMatrix* matrix = nullptr;
+  // q = A p with constraints applied; always available.
+  std::function<void(const Eigen::VectorXd& p, Eigen::VectorXd& q)> apply;
+  // Diagonal of A, for Jacobi preconditioning (empty if unknown).
+  Eigen::VectorXd diagonal;
+};
+
+struct LinearSolveInfo {
+  bool ok = true;          // false: breakdown, factorization failure or non-finite result
+  int iterations = 0;
+  double relResidual = 0;  // ||b - A x|| / ||b|| as the solver saw it
+  std::string message;
+};
+
+// The role of a linear solver component.
+class LinearSolver {
+ public:
+  virtual ~LinearSolver() = default;
+  // Whether the ODE solver must assemble the matrix for this solver.
+  virtual bool needsMatrix() const = 0;
+  // Solves A x = b. `x` holds the previous solution on entry (used by warm starts).
+  virtual LinearSolveInfo solve(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+};
+
+struct CgOptions {
+  int maxIterations = 25;
+  double tolerance = 1e-5;  // stop when ||r|| / ||b|| <= tolerance
+  double threshold = 1e-5;  // stop when |p^T A p| <= threshold (SOFA's test)
+  bool warmStart = false;
+  enum class Preconditioner { None, Jacobi } preconditioner = Preconditioner::None;
+};
+
+// Conjugate gradient as SOFA's CGLinearSolver runs it: starts from zero (or x on warm start),
+// stops on the iteration count, the relative residual, or a small curvature p^T A p.
+LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                  const CgOptions& options);
+
+// Sparse LDL^T (CHOLMOD). The symbolic analysis is done once for a pattern and reused.
+class CholmodSolver {
+ public:
+  CholmodSolver();
+  ~CholmodSolver();
+  CholmodSolver(const CholmodSolver&) = delete;
+  CholmodSolver& operator=(const CholmodSolver&) = delete;
+  // Factorizes A (symmetric; the lower triangle is read). Returns false with a message if A is
+  // not positive definite (for LL^T) or the factorization fails.
+  bool factorize(const BlockSparseMatrix& A, std::string& message);
+  void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  int analyses() const { return analyses_; }
+
+ private:
+  struct Impl;
+  Impl* impl_;
+  int analyses_ = 0;
+};
+
+}  // namespace viscera

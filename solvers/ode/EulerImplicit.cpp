@@ -1,0 +1,124 @@
+// EulerImplicitSolver in SOFA's formulation (one linear solve per step):
+//   [(1 + h rM) M - h (h + rK) K] dv = h [f(x, v) + (h + rK) K v - rM M v],
+//   v <- v + dv, x <- x + h v; fixed nodes are projected out of the system.
+#include <cmath>
+#include <memory>
+
+#include "engine/MechanicalSystem.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "solvers/linear/LinearSolver.h"
+#include "solvers/ode/OdeCommon.h"
+
+namespace viscera {
+
+namespace {
+
+class EulerImplicitSolver : public Component, public OdeSolver {
+ public:
+  using Component::Component;
+  void init() override {
+    rM_ = attrs_.real("rayleighMass");
+    rK_ = attrs_.real("rayleighStiffness");
+    vdamping_ = attrs_.real("vdamping");
+    sys_ = std::make_unique<MechanicalSystem>(*this);
+    linear_ = findLinearSolver(*this);
+  }
+
+  std::optional<Diverged> step(double t, double h, int stepIndex) override {
+    MechanicalObject& s = sys_->state();
+    const int n = s.size();
+    const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
+    Eigen::Matrix3Xd& f = s.f;
+    sys_->computeForce(s.x, s.v, f);
+
+    const double mFact = 1.0 + h * rM_;
+    const double kFact = -h * (h + rK_);
+    const Eigen::VectorXd& m = sys_->nodeMass();
+    Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
+    LinearProblem problem;
+    if (linear_->needsMatrix()) {
+      sys_->assembleStiffness(K_);
+      K_.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
+      // A = kFact K + mFact M, constrained.
+      K_.scale(kFact);
+      for (int i = 0; i < n; ++i) K_.block(K_.diagonalSlot(i)).diagonal().array() += mFact * m[i];
+      K_.constrainNodes(sys_->fixedNodes());
+      problem.matrix = &K_;
+      problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+        q.resize(p.size());
+        K_.multiply(p, q);
+      };
+      problem.diagonal.resize(3 * n);
+      for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = K_.block(K_.diagonalSlot(i)).diagonal();
+    } else {
+      sys_->addKdx(s.v, Kv, 1.0);
+      problem.apply = [this, n, mFact, kFact, &m](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+        Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
+        Eigen::Matrix3Xd Q = P * m.asDiagonal() * mFact;
+        sys_->addKdx(P, Q, kFact);
+        sys_->project(Q);
+        q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
+      };
+    }
+    Eigen::Matrix3Xd b = h * (f + (h + rK_) * Kv - rM_ * (s.v * m.asDiagonal()));
+    sys_->project(b);
+    Eigen::VectorXd bv = Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n);
+    if (dv_.size() != 3 * n) dv_ = Eigen::VectorXd::Zero(3 * n);
+    LinearSolveInfo info = linear_->solve(problem, bv, dv_);
+    lastIterations_ = info.iterations;
+    if (!info.ok) {
+      Diverged d;
+      d.step = stepIndex;
+      d.time = t + h;
+      d.reason = "linear solver failed: " + info.message;
+      d.object = s.name();
+      return d;
+    }
+    s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv_.data(), 3, n);
+    if (vdamping_ > 0) s.v *= std::exp(-h * vdamping_);
+    s.x += h * s.v;
+    if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {
+      // Keep the last good state: nothing bad reaches the outputs.
+      s.x = x0;
+      s.v = v0;
+      return bad;
+    }
+    return std::nullopt;
+  }
+  int lastLinearIterations() const override { return lastIterations_; }
+
+ private:
+  double rM_ = 0, rK_ = 0, vdamping_ = 0;
+  std::unique_ptr<MechanicalSystem> sys_;
+  LinearSolver* linear_ = nullptr;
+  BlockSparseMatrix K_;
+  Eigen::VectorXd dv_;
+  int lastIterations_ = 0;
+};
+
+}  // namespace
+
+LinearSolver* findLinearSolver(Component& c) {
+  LinearSolver* l = c.node().find<LinearSolver>();
+  if (!l) throw c.error("needs a linear solver in its node (CGLinearSolver or SparseLDLSolver)");
+  c.scene().initComponent(dynamic_cast<Component&>(*l));
+  return l;
+}
+
+void registerEulerImplicit(Registry& r) {
+  ComponentSpec s;
+  s.name = "EulerImplicitSolver";
+  s.aliases = {"EulerImplicit"};
+  s.category = "solver";
+  s.doc = "Implicit (backward) Euler with Rayleigh damping, linearised: one linear solve per step (SOFA's "
+          "formulation). The linear solver is the one in the same node.";
+  s.add(AttrSpec::real("rayleighStiffness").def("0").atLeast(0).help("Rayleigh damping proportional to stiffness"));
+  s.add(AttrSpec::real("rayleighMass").def("0").atLeast(0).help("Rayleigh damping proportional to mass"));
+  s.add(AttrSpec::real("vdamping").def("0").atLeast(0).unit(Dimension::frequency()).help("velocity damping: v *= exp(-dt vdamping)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<EulerImplicitSolver>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

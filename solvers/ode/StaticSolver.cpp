@@ -1,0 +1,145 @@
+// StaticSolver: Newton's method on f(x) = 0 at each step (quasi-static loading). With the exact
+// tangent (default) the corotational stiffness is not symmetric, so the Newton system is solved
+// with a sparse LU; otherwise the scene's linear solver solves with SOFA's symmetric stiffness.
+#include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
+#include <memory>
+
+#include "engine/MechanicalSystem.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/fem/TetrahedronFEMForceField.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "solvers/ode/OdeCommon.h"
+
+namespace viscera {
+
+namespace {
+
+Eigen::SparseMatrix<double> toSparse(const BlockSparseMatrix& A) {
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(9 * A.nonZeroBlocks());
+  for (int i = 0; i < A.blockRows(); ++i)
+    for (int s = A.rowStart()[i]; s < A.rowStart()[i + 1]; ++s) {
+      const auto B = A.block(s);
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          if (B(a, b) != 0.0) t.emplace_back(3 * i + a, 3 * A.cols()[s] + b, B(a, b));
+    }
+  Eigen::SparseMatrix<double> M(A.rows(), A.rows());
+  M.setFromTriplets(t.begin(), t.end());
+  return M;
+}
+
+class StaticSolver : public Component, public OdeSolver {
+ public:
+  using Component::Component;
+  void init() override {
+    iterations_ = static_cast<int>(attrs_.integer("newton_iterations"));
+    absRes_ = attrs_.real("absolute_residual_tolerance_threshold");
+    relRes_ = attrs_.real("relative_residual_tolerance_threshold");
+    absCorr_ = attrs_.real("absolute_correction_tolerance_threshold");
+    exact_ = attrs_.boolean("exactTangent");
+    sys_ = std::make_unique<MechanicalSystem>(*this);
+    if (exact_) {
+      for (ForceField* f : sys_->forceFields())
+        if (auto* fem = dynamic_cast<TetrahedronFEMForceField*>(f)) fem->setExactTangent(true);
+    } else {
+      linear_ = findLinearSolver(*this);
+    }
+  }
+
+  std::optional<Diverged> step(double t, double, int stepIndex) override {
+    MechanicalObject& s = sys_->state();
+    const int n = s.size();
+    const Eigen::Matrix3Xd xStart = s.x;
+    const Eigen::Matrix3Xd zero = Eigen::Matrix3Xd::Zero(3, n);
+    double r0 = -1;
+    iterationsDone_ = 0;
+    auto fail = [&](const std::string& why) {
+      s.x = xStart;
+      Diverged d;
+      d.step = stepIndex;
+      d.time = t;
+      d.reason = why;
+      d.object = s.name();
+      return d;
+    };
+    for (int it = 0; it < iterations_; ++it) {
+      sys_->computeForce(s.x, zero, s.f);
+      Eigen::Matrix3Xd r = s.f;
+      sys_->project(r);
+      const double rn = r.norm();
+      if (r0 < 0) r0 = rn;
+      if (rn <= absRes_ || (r0 > 0 && rn <= relRes_ * r0)) break;
+      // Solve (-K) dx = f.
+      sys_->assembleStiffness(K_);
+      K_.scale(-1.0);
+      K_.constrainNodes(sys_->fixedNodes());
+      Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(r.data(), 3 * n), dx;
+      if (exact_) {
+        Eigen::SparseMatrix<double> A = toSparse(K_);
+        A.makeCompressed();
+        if (!luReady_) {
+          lu_.analyzePattern(A);
+          luReady_ = true;
+        }
+        lu_.factorize(A);
+        if (lu_.info() != Eigen::Success) return fail("singular tangent stiffness in Newton iteration " + std::to_string(it));
+        dx = lu_.solve(b);
+      } else {
+        LinearProblem p;
+        p.matrix = &K_;
+        p.apply = [this](const Eigen::VectorXd& a, Eigen::VectorXd& q) {
+          q.resize(a.size());
+          K_.multiply(a, q);
+        };
+        dx = Eigen::VectorXd::Zero(3 * n);
+        LinearSolveInfo info = linear_->solve(p, b, dx);
+        if (!info.ok) return fail("linear solver failed: " + info.message);
+      }
+      if (!dx.allFinite()) return fail("non-finite Newton correction");
+      s.x += Eigen::Map<const Eigen::Matrix3Xd>(dx.data(), 3, n);
+      ++iterationsDone_;
+      if (dx.norm() <= absCorr_) break;
+    }
+    s.v.setZero();
+    if (auto bad = sys_->check(s.x, s.v, stepIndex, t)) {
+      s.x = xStart;
+      return bad;
+    }
+    return std::nullopt;
+  }
+  int lastLinearIterations() const override { return iterationsDone_; }
+
+ private:
+  int iterations_ = 10;
+  double absRes_ = 1e-10, relRes_ = 1e-10, absCorr_ = 1e-12;
+  bool exact_ = true;
+  std::unique_ptr<MechanicalSystem> sys_;
+  LinearSolver* linear_ = nullptr;
+  BlockSparseMatrix K_;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu_;
+  bool luReady_ = false;
+  int iterationsDone_ = 0;
+};
+
+}  // namespace
+
+void registerStaticSolver(Registry& r) {
+  ComponentSpec s;
+  s.name = "StaticSolver";
+  s.aliases = {"NewtonRaphsonSolver"};
+  s.category = "solver";
+  s.doc = "Static equilibrium by Newton's method each step (loads applied at once; inertia ignored).";
+  s.add(AttrSpec::integer("newton_iterations").def("20").atLeast(1).help("maximum Newton iterations per step"));
+  s.add(AttrSpec::real("absolute_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| falls to this"));
+  s.add(AttrSpec::real("relative_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| / ||f0|| falls to this"));
+  s.add(AttrSpec::real("absolute_correction_tolerance_threshold").def("1e-12").atLeast(0).help("stop when ||dx|| falls to this"));
+  s.add(AttrSpec::real("relative_correction_tolerance_threshold").def("1e-12").atLeast(0).help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::boolean("exactTangent").def("true").help("exact corotational tangent with sparse LU (false: the node's linear solver with SOFA's stiffness)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<StaticSolver>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera
