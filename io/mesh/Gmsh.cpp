@@ -228,8 +228,8 @@ class GmshReader {
       read += n;
     }
     if (read != total)
-      in_.fail("the $Nodes header (line " + std::to_string(headerLine) + ") declares " + plural(total, "node") + " but the blocks hold " +
-               std::to_string(read));
+      detail::fail(in_.source(), headerLine,
+                   "the $Nodes header declares " + plural(total, "node") + " but the blocks hold " + std::to_string(read));
     expectEnd("$EndNodes", plural(blocks, "node block"));
   }
 
@@ -324,8 +324,8 @@ class GmshReader {
       read += n;
     }
     if (read != total)
-      in_.fail("the $Elements header (line " + std::to_string(headerLine) + ") declares " + plural(total, "element") +
-               " but the blocks hold " + std::to_string(read));
+      detail::fail(in_.source(), headerLine,
+                   "the $Elements header declares " + plural(total, "element") + " but the blocks hold " + std::to_string(read));
     expectEnd("$EndElements", plural(blocks, "element block"));
   }
 

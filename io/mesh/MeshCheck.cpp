@@ -1,9 +1,10 @@
-#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <Eigen/Dense>
 
 #include "engine/core/Error.h"
 #include "io/mesh/Mesh.h"

@@ -13,6 +13,8 @@
 #include <sstream>
 #include <string>
 
+#include <Eigen/Dense>
+
 #include "engine/core/Error.h"
 #include "io/mesh/Mesh.h"
 

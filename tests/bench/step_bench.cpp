@@ -1,0 +1,73 @@
+// Time per step of the reference scenes, on one and on two threads (Google Benchmark).
+// `make bench` reports medians over repetitions.
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <functional>
+#include <string>
+
+#include "engine/Simulation.h"
+#include "engine/core/Scene.h"
+#include "io/scene/SceneReader.h"
+
+using namespace viscera;
+
+namespace {
+
+// Drops exporters so that the benchmark measures the mechanics only.
+void dropTag(ElementDesc& el, const std::string& tag) {
+  auto& c = el.children;
+  c.erase(std::remove_if(c.begin(), c.end(), [&](const ElementDesc& e) { return e.tag == tag; }), c.end());
+  for (auto& ch : c) dropTag(ch, tag);
+}
+
+void replaceTag(ElementDesc& el, const std::string& from, const std::string& to) {
+  for (auto& ch : el.children) {
+    if (ch.tag == from) {
+      ch.tag = to;
+      ch.attrs.clear();
+    }
+    replaceTag(ch, from, to);
+  }
+}
+
+void runScene(benchmark::State& state, const std::string& file, const std::function<void(SceneDesc&)>& edit) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(0)));
+  SceneDesc desc = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/" + file);
+  dropTag(desc.root, "VTKExporter");
+  if (edit) edit(desc);
+  auto scene = Scene::build(desc);
+  Simulation sim(*scene);
+  for (int i = 0; i < 5; ++i) sim.step();  // warm up
+  for (auto _ : state) {
+    auto bad = sim.step();
+    if (bad) {
+      state.SkipWithError(bad->str().c_str());
+      break;
+    }
+  }
+  state.counters["cg_iterations"] = sim.lastLinearIterations();
+}
+
+void BM_GelPhantom_CG25(benchmark::State& s) { runScene(s, "gel_phantom.xml", nullptr); }
+void BM_GelPhantom_CG25_MatrixFree(benchmark::State& s) {
+  runScene(s, "gel_phantom.xml", [](SceneDesc& d) { d.root.findByName("linear")->set("assembled", "false"); });
+}
+void BM_GelPhantom_Cholmod(benchmark::State& s) {
+  runScene(s, "gel_phantom.xml", [](SceneDesc& d) { replaceTag(d.root, "CGLinearSolver", "SparseLDLSolver"); });
+}
+void BM_GelPhantomCoarse_CG25(benchmark::State& s) { runScene(s, "gel_phantom_coarse.xml", nullptr); }
+void BM_Beam_CG25(benchmark::State& s) { runScene(s, "beam.xml", nullptr); }
+void BM_Beam_Cholmod(benchmark::State& s) {
+  runScene(s, "beam.xml", [](SceneDesc& d) { replaceTag(d.root, "CGLinearSolver", "SparseLDLSolver"); });
+}
+
+}  // namespace
+
+BENCHMARK(BM_GelPhantom_CG25)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+BENCHMARK(BM_GelPhantom_CG25_MatrixFree)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+BENCHMARK(BM_GelPhantom_Cholmod)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+BENCHMARK(BM_GelPhantomCoarse_CG25)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_Beam_CG25)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_Beam_Cholmod)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
