@@ -112,7 +112,8 @@ ElementRest restElement(Method m, const Mat34& Xw, const Lame& lame) {
   const double det = E.determinant();
   if (!(std::abs(det) > 0.0) || !std::isfinite(det)) throw std::domain_error("degenerate tetrahedron");
   e.volume = std::abs(det) / 6.0;
-  e.sign = det > 0 ? 1.0 : -1.0;
+  // Orientation in the world: the polar frame of a negatively oriented element is a reflection.
+  e.sign = det * R0.determinant() > 0 ? 1.0 : -1.0;
   // Rows of E^-1 are the gradients of N1..N3; N0 = 1 - N1 - N2 - N3.
   const Eigen::Matrix3d Einv = E.inverse();
   e.G.col(1) = Einv.row(0).transpose();

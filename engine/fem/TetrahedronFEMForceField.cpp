@@ -146,7 +146,7 @@ std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3
     const Mat34 p = gather(x, e);
     Eigen::Matrix3d E;
     E << p.col(1) - p.col(0), p.col(2) - p.col(0), p.col(3) - p.col(0);
-    // The rest frame of small/large/polar preserves orientation, so compare with the rest sign.
+    // An element is inverted when its orientation differs from the rest orientation.
     if (!(E.determinant() * rest_[e].sign > 0.0)) bad.push_back(e);
   }
   return bad;

@@ -281,9 +281,9 @@ class GmshReader {
         first = 3 + static_cast<size_t>(tagCount);
       }
       if (t.size() != first + nodes)
-        in_.fail("element " + std::to_string(tag) + " (" + gmshTypeName(type) + ") should have " + plural(nodes, "node") +
-                 " after " + plural(static_cast<long long>(first), "value") + ", but the line has " +
-                 std::to_string(t.size()) + " values");
+        in_.fail("element " + std::to_string(tag) + " is a " + gmshTypeName(type) +
+                 (v1 ? std::string() : " with " + plural(static_cast<long long>(first) - 3, "tag")) + ", so its line needs " +
+                 std::to_string(first + nodes) + " values; found " + std::to_string(t.size()));
       addElement(tag, type, first);
     }
     expectEnd(end, plural(n, "element"));
@@ -317,8 +317,8 @@ class GmshReader {
         const auto& t = record(what, n, i, "element");
         const long long tag = in_.intAt(0, "the element tag");
         if (t.size() != static_cast<size_t>(1 + nodes))
-          in_.fail("element " + std::to_string(tag) + " (" + gmshTypeName(type) + ") needs its tag and " + plural(nodes, "node") +
-                   ", found " + plural(static_cast<long long>(t.size()), "value"));
+          in_.fail("element " + std::to_string(tag) + " is a " + gmshTypeName(type) + ", so its line needs " +
+                   std::to_string(1 + nodes) + " values (tag and nodes); found " + std::to_string(t.size()));
         addElement(tag, type, 1);
       }
       read += n;

@@ -223,23 +223,25 @@ void appendVtkCells(const VtkCells& cells, long long pointBase, long long numPoi
     const long long count = end - begin, type = cells.types[c];
     int want = -1;  // point count of a kept cell; 0 for skipped ones
     bool countOk = false;
+    const char* name = "";
     switch (type) {
-      case 10: want = 4; countOk = count == 4; break;
-      case 5: want = 3; countOk = count == 3; break;
-      case 1: want = 0; countOk = count == 1; break;  // vertex
-      case 2: want = 0; countOk = count >= 1; break;  // poly-vertex
-      case 3: want = 0; countOk = count == 2; break;  // line
-      case 4: want = 0; countOk = count >= 2; break;  // poly-line
+      case 10: want = 4; countOk = count == 4; name = "a tetrahedron"; break;
+      case 5: want = 3; countOk = count == 3; name = "a triangle"; break;
+      case 1: want = 0; countOk = count == 1; name = "a vertex"; break;
+      case 2: want = 0; countOk = count >= 1; name = "a poly-vertex"; break;
+      case 3: want = 0; countOk = count == 2; name = "a line"; break;
+      case 4: want = 0; countOk = count >= 2; name = "a poly-line"; break;
       default: {
-        const char* name = vtkTypeName(type);
+        const char* known = vtkTypeName(type);
         fail(source, typeLine(c),
-             "cell " + std::to_string(c) + " has VTK type " + std::to_string(type) + (name ? std::string(" (") + name + ")" : "") +
+             "cell " + std::to_string(c) + " has VTK type " + std::to_string(type) + (known ? std::string(" (") + known + ")" : "") +
                  ", which is not supported: only tetrahedra (10) and triangles (5) are read; vertices and lines are skipped");
       }
     }
     if (!countOk)
       fail(source, cellLine(c),
-           "cell " + std::to_string(c) + " of VTK type " + std::to_string(type) + " has " + std::to_string(count) + " points");
+           "cell " + std::to_string(c) + " is " + name + " (VTK type " + std::to_string(type) + ") but has " + std::to_string(count) +
+               " points");
     for (long long k = begin; k < end; ++k) {
       const long long p = cells.connectivity[k];
       if (p < 0 || p >= numPoints)

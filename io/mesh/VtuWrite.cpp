@@ -49,7 +49,9 @@ class Block {
     putUnsigned(payloadBytes, 8);
   }
   void putUnsigned(uint64_t v, int size) {
-    for (int k = 0; k < size; ++k) bytes_.push_back(static_cast<char>((v >> (8 * k)) & 0xFF));
+    char le[8];
+    for (int k = 0; k < size; ++k) le[k] = static_cast<char>((v >> (8 * k)) & 0xFF);
+    bytes_.append(le, static_cast<size_t>(size));
   }
   void putInt64(int64_t v) { putUnsigned(static_cast<uint64_t>(v), 8); }
   void putFloat64(double v) {
@@ -67,21 +69,22 @@ void appendBase64(std::string& out, const std::string& bytes) {
   static const char kDigits[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
   const size_t n = bytes.size();
-  out.reserve(out.size() + (n + 2) / 3 * 4);
+  size_t o = out.size();
+  out.resize(o + (n + 2) / 3 * 4);
   size_t i = 0;
-  for (; i + 2 < n; i += 3) {
+  for (; i + 2 < n; i += 3, o += 4) {
     const uint32_t v = uint32_t(p[i]) << 16 | uint32_t(p[i + 1]) << 8 | p[i + 2];
-    out += kDigits[v >> 18];
-    out += kDigits[(v >> 12) & 63];
-    out += kDigits[(v >> 6) & 63];
-    out += kDigits[v & 63];
+    out[o] = kDigits[v >> 18];
+    out[o + 1] = kDigits[(v >> 12) & 63];
+    out[o + 2] = kDigits[(v >> 6) & 63];
+    out[o + 3] = kDigits[v & 63];
   }
   if (i < n) {
     const uint32_t v = uint32_t(p[i]) << 16 | (i + 1 < n ? uint32_t(p[i + 1]) << 8 : 0);
-    out += kDigits[v >> 18];
-    out += kDigits[(v >> 12) & 63];
-    out += i + 1 < n ? kDigits[(v >> 6) & 63] : '=';
-    out += '=';
+    out[o] = kDigits[v >> 18];
+    out[o + 1] = kDigits[(v >> 12) & 63];
+    out[o + 2] = i + 1 < n ? kDigits[(v >> 6) & 63] : '=';
+    out[o + 3] = '=';
   }
 }
 

@@ -18,6 +18,8 @@ class CGLinearSolver : public Component, public LinearSolver {
     o_.preconditioner = attrs_.str("preconditioner") == "jacobi" ? CgOptions::Preconditioner::Jacobi
                                                                   : CgOptions::Preconditioner::None;
     assembled_ = attrs_.boolean("assembled");
+    if (!assembled_ && o_.preconditioner != CgOptions::Preconditioner::None)
+      throw error("preconditioner", "needs the assembled matrix; remove it or set assembled=\"true\"");
   }
   bool needsMatrix() const override { return assembled_; }
   LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {

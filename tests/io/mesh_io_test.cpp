@@ -25,15 +25,28 @@ namespace {
 
 std::string dataPath(const std::string& name) { return std::string(VISCERA_SOURCE_DIR) + "/tests/data/meshes/" + name; }
 
-// A fresh folder per test, so tests can run in parallel processes.
-fs::path freshDir() {
-  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  fs::path dir = fs::temp_directory_path() /
-                 ("viscera_mesh_" + std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+// A fresh folder per test (tests may run in parallel processes), removed afterwards.
+class TempFolder {
+ public:
+  TempFolder() {
+    const auto* info = testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = "viscera_mesh_" + std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(::getpid());
+    for (char& c : name)
+      if (c == '/') c = '_';
+    path_ = fs::temp_directory_path() / name;
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempFolder() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  operator const fs::path&() const { return path_; }
+  fs::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  fs::path path_;
+};
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -108,9 +121,9 @@ TEST_P(MeshCubeFiles, ReadsTheReferenceCube) {
 
 INSTANTIATE_TEST_SUITE_P(AllFormats, MeshCubeFiles,
                          testing::Values("cube_v1.msh", "cube_v2.msh", "cube_v40.msh", "cube_v41.msh", "cube.vtk", "cube_v51.vtk",
-                                         "cube_ascii.vtu", "cube_binary32.vtu"),
-                         [](const testing::TestParamInfo<const char*>& info) {
-                           std::string name = info.param;
+                                         "cube_ascii.vtu", "cube_binary32.vtu", "cube_bigendian.vtu"),
+                         [](const testing::TestParamInfo<const char*>& param) {
+                           std::string name = param.param;
                            for (char& c : name)
                              if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
                            return name;
@@ -132,7 +145,7 @@ TEST(MeshRead, LegacyVtkWithPointsOnly) {
 }
 
 TEST(MeshRead, ExtensionIsCaseInsensitiveAndUnknownOnesAreRejected) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   fs::copy_file(dataPath("cube_v2.msh"), dir / "CUBE.MSH");
   expectSameMesh(viscera::io::readVolumeMesh((dir / "CUBE.MSH").string()), referenceCube());
   spit(dir / "cube.obj", "v 0 0 0\n");
@@ -151,7 +164,7 @@ TEST(MeshRead, MissingFileNamesThePath) {
 }
 
 TEST(MeshRead, VtuWithTwoPiecesIsConcatenated) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const std::string piece =
       "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">"
       "<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 0 0 0 1 0 0 0 1</DataArray></Points>"
@@ -167,7 +180,7 @@ TEST(MeshRead, VtuWithTwoPiecesIsConcatenated) {
 }
 
 TEST(MeshWrite, VtuRoundTripIsExact) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> uniform(-1e3, 1e3);
   const int numPoints = 50, numTets = 40;
@@ -206,7 +219,7 @@ TEST(MeshWrite, VtuRoundTripIsExact) {
 }
 
 TEST(MeshWrite, VtuWithoutCellsOrPoints) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   Eigen::Matrix3Xd points(3, 2);
   points << 1, 2, 3, 4, 5, 6;
   const std::string path = (dir / "cloud.vtu").string();
@@ -223,7 +236,7 @@ TEST(MeshWrite, VtuWithoutCellsOrPoints) {
 }
 
 TEST(MeshWrite, VtuRejectsInconsistentData) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const VolumeMesh cube = referenceCube();
   const std::string path = (dir / "bad.vtu").string();
   std::string msg = errorOf([&] { viscera::io::writeVtu(path, cube.points, cube.tets, {{"u", 3, std::vector<double>(23)}}, {}); });
@@ -240,7 +253,7 @@ TEST(MeshWrite, VtuRejectsInconsistentData) {
 }
 
 TEST(MeshWrite, PvdCollection) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const std::string path = (dir / "run.pvd").string();
   viscera::io::writePvd(path, {{0.0, "frames/f_0000.vtu"}, {0.1, "frames/f_0001.vtu"}, {1e-7, "a&b.vtu"}, {1.0 / 3.0, "x.vtu"}});
   const std::string text = slurp(path);
@@ -256,7 +269,7 @@ TEST(MeshWrite, PvdCollection) {
 }
 
 TEST(MeshWrite, AtomicWriteReplacesAndLeavesNoTemporary) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const std::string path = (dir / "out.txt").string();
   viscera::io::writeFileAtomic(path, "first");
   viscera::io::writeFileAtomic(path, "second, longer content");
@@ -267,7 +280,7 @@ TEST(MeshWrite, AtomicWriteReplacesAndLeavesNoTemporary) {
 }
 
 TEST(MeshWrite, AtomicWriteIntoMissingFolderThrowsAndCreatesNothing) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const fs::path missing = dir / "no_such_folder";
   const std::string path = (missing / "out.vtu").string();
   const std::string msg = errorOf([&] { viscera::io::writeFileAtomic(path, "data"); });
@@ -283,7 +296,7 @@ TEST(MeshWrite, AtomicWriteIntoMissingFolderThrowsAndCreatesNothing) {
 }
 
 TEST(MeshWrite, AtomicWriteOverAFolderKeepsItAndRemovesTheTemporary) {
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   fs::create_directory(dir / "target");
   spit(dir / "target" / "inside", "kept");
   const std::string path = (dir / "target").string();
@@ -296,7 +309,7 @@ TEST(MeshWrite, AtomicWriteOverAFolderKeepsItAndRemovesTheTemporary) {
 
 TEST(MeshWrite, AtomicWriteInReadOnlyFolderKeepsTheOldFile) {
   if (::geteuid() == 0) GTEST_SKIP() << "root ignores folder permissions";
-  const fs::path dir = freshDir();
+  const TempFolder dir;
   const std::string path = (dir / "out.txt").string();
   viscera::io::writeFileAtomic(path, "old");
   fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);

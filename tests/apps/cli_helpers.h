@@ -1,0 +1,101 @@
+// Helpers for the command-line tests: run the built `viscera` binary in a shell, capture its exit
+// code, stdout and stderr, and give each test its own temporary folder.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace viscera_test {
+
+namespace fs = std::filesystem;
+
+inline std::string sourcePath(const std::string& rel) { return std::string(VISCERA_SOURCE_DIR) + "/" + rel; }
+inline std::string badPath(const std::string& name) { return sourcePath("tests/data/bad/" + name); }
+
+inline std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Single-quotes a word for /bin/sh.
+inline std::string shellQuote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// A fresh folder under the system temp folder, removed when the object goes away.
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (fs::temp_directory_path() / "viscera_cli_XXXXXX").string();
+    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = tmpl;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+struct RunResult {
+  int rc = -1;  // exit code, or -1 if the process did not exit normally
+  std::string out, err;
+};
+
+inline std::ostream& operator<<(std::ostream& o, const RunResult& r) {
+  return o << "exit code " << r.rc << "\n--- stdout ---\n" << r.out << "\n--- stderr ---\n" << r.err;
+}
+
+// Runs `viscera <args...>` (each argument quoted) and captures everything.
+inline RunResult runViscera(const std::vector<std::string>& args) {
+  TempDir io;
+  std::string cmd = shellQuote(VISCERA_BINARY);
+  for (const auto& a : args) cmd += " " + shellQuote(a);
+  cmd += " >" + shellQuote(io / "stdout") + " 2>" + shellQuote(io / "stderr") + " </dev/null";
+  RunResult r;
+  int status = std::system(cmd.c_str());
+  r.rc = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = slurp(io / "stdout");
+  r.err = slurp(io / "stderr");
+  return r;
+}
+
+// 1-based number of the first line of `file` that contains `needle` (0 if none).
+inline int lineOf(const std::string& file, const std::string& needle) {
+  std::istringstream in(slurp(file));
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n)
+    if (line.find(needle) != std::string::npos) return n;
+  return 0;
+}
+
+// Whether a folder is absent or empty.
+inline bool absentOrEmpty(const fs::path& p) { return !fs::exists(p) || (fs::is_directory(p) && fs::is_empty(p)); }
+
+// Lines of a text file, without the trailing empty line.
+inline std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> v;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+}  // namespace viscera_test

@@ -1,0 +1,257 @@
+// The `viscera` command line: check, components, run with --summary / --state-out / --time, option
+// errors and a diverging run (exit codes 0 ok, 2 invalid input, 3 diverged).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "cli_helpers.h"
+#include "engine/core/Registry.h"
+
+using namespace viscera_test;
+
+namespace {
+
+const std::string kBeam = sourcePath("scenes/beam.xml");  // 5 x 5 x 20 grid: 500 nodes, dt 0.01
+
+// The number after "key": in a JSON text (NaN if absent).
+double jsonNumber(const std::string& json, const std::string& key) {
+  size_t p = json.find("\"" + key + "\":");
+  if (p == std::string::npos) return std::nan("");
+  p += key.size() + 3;
+  const char* start = json.c_str() + p;
+  char* end = nullptr;
+  double d = std::strtod(start, &end);
+  return end == start ? std::nan("") : d;
+}
+
+// The string after "key": in a JSON text (empty if absent).
+std::string jsonString(const std::string& json, const std::string& key) {
+  size_t p = json.find("\"" + key + "\": \"");
+  if (p == std::string::npos) return "";
+  p += key.size() + 5;
+  return json.substr(p, json.find('"', p) - p);
+}
+
+struct Row {
+  std::string object;
+  int node;
+  double x, y, z;
+};
+
+// Parses --state-out CSV; checks the header.
+std::vector<Row> readState(const std::string& path) {
+  auto ls = lines(slurp(path));
+  EXPECT_FALSE(ls.empty());
+  if (ls.empty()) return {};
+  EXPECT_EQ(ls[0], "object,node,x,y,z");
+  std::vector<Row> rows;
+  for (size_t i = 1; i < ls.size(); ++i) {
+    std::vector<std::string> f;
+    std::string cur;
+    for (char c : ls[i]) {
+      if (c == ',') f.push_back(cur), cur.clear();
+      else cur += c;
+    }
+    f.push_back(cur);
+    EXPECT_EQ(f.size(), 5u) << "line " << i + 1 << ": " << ls[i];
+    if (f.size() != 5) continue;
+    rows.push_back({f[0], std::stoi(f[1]), std::stod(f[2]), std::stod(f[3]), std::stod(f[4])});
+  }
+  return rows;
+}
+
+TEST(Cli, CheckGoodSceneExitsZero) {
+  RunResult r = runViscera({"check", kBeam});
+  EXPECT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.out.find("ok"), std::string::npos) << r;
+  EXPECT_NE(r.out.find("1 mechanical object"), std::string::npos) << r;
+}
+
+TEST(Cli, CheckWritesNothing) {
+  // check initialises but does not run: no exporter output next to the scene.
+  TempDir tmp;
+  fs::copy_file(kBeam, tmp / "beam.xml");
+  RunResult r = runViscera({"check", tmp / "beam.xml"});
+  EXPECT_EQ(r.rc, 0) << r;
+  std::vector<std::string> files;
+  for (const auto& e : fs::directory_iterator(tmp.path())) files.push_back(e.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"beam.xml"});
+}
+
+TEST(Cli, ComponentsListsEveryComponentAndAlias) {
+  RunResult r = runViscera({"components"});
+  ASSERT_EQ(r.rc, 0) << r;
+  for (const char* n : {"TetrahedronFEMForceField", "FixedConstraint", "FixedProjectiveConstraint", "MechanicalObject",
+                        "EulerImplicitSolver", "CGLinearSolver", "MeshGmshLoader", "VTKExporter", "BoxROI"})
+    EXPECT_NE(r.out.find(n), std::string::npos) << n;
+  // Every registered component, each alias, and the ignored SOFA elements.
+  const viscera::Registry& reg = viscera::builtinRegistry();
+  ASSERT_FALSE(reg.specs().empty());
+  for (const auto& [name, spec] : reg.specs()) {
+    EXPECT_NE(r.out.find("\n" + name + " "), std::string::npos) << "component " << name << " is not listed";
+    for (const auto& a : spec.aliases) EXPECT_NE(r.out.find(" " + a), std::string::npos) << "alias " << a << " of " << name;
+    for (const auto& a : spec.attrs) EXPECT_NE(r.out.find("- " + a.name + " ("), std::string::npos) << name << "." << a.name;
+  }
+  for (const auto& [name, why] : reg.ignored()) EXPECT_NE(r.out.find(" " + name), std::string::npos) << name;
+  // The alias is shown next to its component.
+  EXPECT_NE(r.out.find("FixedConstraint (also FixedProjectiveConstraint)"), std::string::npos) << r.out;
+}
+
+TEST(Cli, ComponentsOneByNameOrAlias) {
+  RunResult r = runViscera({"components", "TetrahedronFEMForceField"});
+  EXPECT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.out.find("poissonRatio"), std::string::npos) << r;
+  EXPECT_NE(r.out.find("(-1, 0.5)"), std::string::npos) << r;
+
+  RunResult a = runViscera({"components", "FixedProjectiveConstraint"});
+  EXPECT_EQ(a.rc, 0) << a;
+  EXPECT_EQ(a.out.rfind("FixedConstraint", 0), 0u) << a;
+
+  RunResult node = runViscera({"components", "Node"});
+  EXPECT_EQ(node.rc, 0) << node;
+  EXPECT_NE(node.out.find("units"), std::string::npos) << node;
+
+  RunResult ig = runViscera({"components", "RequiredPlugin"});
+  EXPECT_EQ(ig.rc, 0) << ig;
+  EXPECT_NE(ig.out.find("ignored"), std::string::npos) << ig;
+}
+
+TEST(Cli, ComponentsUnknownExitsTwo) {
+  RunResult r = runViscera({"components", "NoSuch"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("NoSuch"), std::string::npos) << r;
+}
+
+TEST(Cli, RunWritesSummaryJson) {
+  TempDir tmp;
+  RunResult r = runViscera({"run", kBeam, "--out", tmp / "out", "--steps", "10", "--summary", tmp / "summary.json", "--quiet"});
+  ASSERT_EQ(r.rc, 0) << r;
+  const std::string j = slurp(tmp / "summary.json");
+  EXPECT_EQ(jsonString(j, "status"), "ok") << j;
+  EXPECT_EQ(jsonNumber(j, "steps"), 10) << j;
+  EXPECT_NEAR(jsonNumber(j, "simulated_time"), 0.1, 1e-12) << j;
+  EXPECT_NEAR(jsonNumber(j, "dt"), 0.01, 1e-15) << j;
+  EXPECT_GE(jsonNumber(j, "wall_time_s"), 0.0) << j;
+  EXPECT_GE(jsonNumber(j, "ms_per_step"), 0.0) << j;
+  EXPECT_NEAR(jsonNumber(j, "ms_per_step"), 1000 * jsonNumber(j, "wall_time_s") / 10, 1e-6) << j;
+  EXPECT_NE(j.find("\"objects\": ["), std::string::npos) << j;
+  EXPECT_EQ(jsonString(j, "name"), "dofs") << j;
+  EXPECT_EQ(jsonNumber(j, "nodes"), 500) << j;
+  EXPECT_GT(jsonNumber(j, "max_displacement"), 0.0) << j;  // the beam sags under gravity
+  // Well-formed enough: balanced braces and brackets, no NaN/inf.
+  EXPECT_EQ(std::count(j.begin(), j.end(), '{'), std::count(j.begin(), j.end(), '}')) << j;
+  EXPECT_EQ(std::count(j.begin(), j.end(), '['), std::count(j.begin(), j.end(), ']')) << j;
+  EXPECT_EQ(j.find("nan"), std::string::npos) << j;
+  EXPECT_EQ(j.find("inf"), std::string::npos) << j;
+}
+
+TEST(Cli, RunWritesStateCsv) {
+  TempDir tmp;
+  RunResult r0 = runViscera({"run", kBeam, "--out", tmp / "out0", "--steps", "0", "--state-out", tmp / "rest.csv", "--quiet"});
+  ASSERT_EQ(r0.rc, 0) << r0;
+  RunResult r = runViscera({"run", kBeam, "--out", tmp / "out", "--steps", "10", "--state-out", tmp / "state.csv", "--summary",
+                         tmp / "summary.json", "--quiet"});
+  ASSERT_EQ(r.rc, 0) << r;
+  auto rest = readState(tmp / "rest.csv");
+  auto state = readState(tmp / "state.csv");
+  ASSERT_EQ(state.size(), 500u);  // one row per node
+  ASSERT_EQ(rest.size(), 500u);
+  double maxDisp = 0;
+  for (size_t i = 0; i < state.size(); ++i) {
+    EXPECT_EQ(state[i].object, "dofs");
+    EXPECT_EQ(state[i].node, static_cast<int>(i));
+    EXPECT_TRUE(std::isfinite(state[i].x) && std::isfinite(state[i].y) && std::isfinite(state[i].z));
+    maxDisp = std::max(maxDisp, std::hypot(state[i].x - rest[i].x, state[i].y - rest[i].y, state[i].z - rest[i].z));
+  }
+  // With zero steps the state is the grid itself: node 0 at the min corner, x fastest.
+  EXPECT_EQ(rest[0].x, -5);
+  EXPECT_EQ(rest[0].y, -5);
+  EXPECT_EQ(rest[0].z, 0);
+  EXPECT_EQ(rest[1].x, -2.5);
+  EXPECT_EQ(rest[499].z, 40);
+  // The summary's largest displacement is that of the CSV (written with 17 digits).
+  const double fromSummary = jsonNumber(slurp(tmp / "summary.json"), "max_displacement");
+  EXPECT_NEAR(fromSummary, maxDisp, 1e-8 * std::max(1.0, maxDisp));
+  EXPECT_GT(maxDisp, 0.0);
+}
+
+TEST(Cli, TimeOptionRunsThatManySteps) {
+  TempDir tmp;
+  RunResult r = runViscera({"run", kBeam, "--out", tmp / "out", "--time", "0.05", "--summary", tmp / "s.json", "--quiet"});
+  ASSERT_EQ(r.rc, 0) << r;
+  const std::string j = slurp(tmp / "s.json");
+  EXPECT_EQ(jsonNumber(j, "steps"), 5) << j;
+  EXPECT_NEAR(jsonNumber(j, "simulated_time"), 0.05, 1e-12) << j;
+}
+
+TEST(Cli, StepsAndTimeTogetherIsAnError) {
+  TempDir tmp;
+  RunResult r = runViscera({"run", kBeam, "--out", tmp / "out", "--steps", "5", "--time", "0.05"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_FALSE(r.err.empty()) << r;
+  EXPECT_TRUE(absentOrEmpty(tmp.path() / "out"));
+}
+
+TEST(Cli, OptionErrorsExitTwo) {
+  TempDir tmp;
+  EXPECT_EQ(runViscera({}).rc, 2);                                                  // no subcommand
+  EXPECT_EQ(runViscera({"frobnicate"}).rc, 2);                                      // unknown subcommand
+  EXPECT_EQ(runViscera({"run"}).rc, 2);                                             // no scene
+  EXPECT_EQ(runViscera({"run", kBeam, "--steps", "-3", "--out", tmp / "o"}).rc, 2);  // negative steps
+  EXPECT_EQ(runViscera({"run", kBeam, "--steps", "many", "--out", tmp / "o"}).rc, 2);
+  EXPECT_EQ(runViscera({"run", kBeam, "--threads", "0", "--out", tmp / "o"}).rc, 2);
+  EXPECT_TRUE(absentOrEmpty(tmp.path() / "o"));
+  EXPECT_EQ(runViscera({"--help"}).rc, 0);
+}
+
+// Runs a diverging fixture (dt = 0.01) and checks exit code 3, the message, the summary, the
+// final state and the exported files; returns the step that failed.
+int checkDivergingRun(const std::string& fixture) {
+  TempDir tmp;
+  RunResult r = runViscera({"run", badPath(fixture), "--out", tmp / "out", "--steps", "50", "--summary", tmp / "s.json",
+                         "--state-out", tmp / "state.csv"});
+  EXPECT_EQ(r.rc, 3) << r;
+  if (r.rc != 3) return 0;
+  // "diverged at step N (t = T)" with T = N dt (dt = 0.01 in the fixture).
+  const size_t p = r.err.find("diverged at step ");
+  EXPECT_NE(p, std::string::npos) << r;
+  if (p == std::string::npos) return 0;
+  const int step = std::atoi(r.err.c_str() + p + 17);
+  const size_t tp = r.err.find("(t = ", p);
+  EXPECT_NE(tp, std::string::npos) << r;
+  if (tp == std::string::npos) return 0;
+  const double t = std::atof(r.err.c_str() + tp + 5);
+  EXPECT_GE(step, 1) << r;
+  EXPECT_NEAR(t, 0.01 * step, 1e-12) << r;
+  EXPECT_NE(r.err.find(badPath(fixture) + ": diverged"), std::string::npos) << r;
+  // The summary records the failure; steps counts the good ones.
+  const std::string j = slurp(tmp / "s.json");
+  EXPECT_EQ(jsonString(j, "status"), "diverged") << j;
+  EXPECT_NE(jsonString(j, "failure").find("diverged at step " + std::to_string(step)), std::string::npos) << j;
+  EXPECT_EQ(jsonNumber(j, "steps"), step - 1) << j;
+  // The final state is the last good one: finite.
+  for (const auto& row : readState(tmp / "state.csv"))
+    EXPECT_TRUE(std::isfinite(row.x) && std::isfinite(row.y) && std::isfinite(row.z)) << "node " << row.node;
+  // Nothing from the failed step reaches the exporter: one file per good step (every step, from 0).
+  int vtu = 0;
+  for (const auto& e : fs::directory_iterator(tmp.path() / "out")) vtu += e.path().extension() == ".vtu";
+  EXPECT_EQ(vtu, step) << "steps 0.." << step - 1 << " expected";
+  return step;
+}
+
+TEST(Cli, DivergingRunExitsThreeAndNamesStepAndTime) {
+  // A huge force on a soft beam: elements invert in the first step.
+  EXPECT_GE(checkDivergingRun("diverging.xml"), 1);
+}
+
+TEST(Cli, DivergingAfterSeveralGoodSteps) {
+  // A smaller force: a few good steps first, so step numbering and outputs are checked past step 1.
+  EXPECT_GT(checkDivergingRun("diverging_later.xml"), 1);
+}
+
+}  // namespace

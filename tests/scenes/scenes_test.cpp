@@ -1,0 +1,131 @@
+// Every scene shipped in scenes/ (found at test time, so new scenes are covered without editing this
+// file) loads, runs 20 steps without failure, and writes a .pvd index with the .vtu files it names
+// into the output folder, not next to the scene.
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "engine/Simulation.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/scene/SceneReader.h"
+
+namespace fs = std::filesystem;
+using namespace viscera;
+
+namespace {
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string t = (fs::temp_directory_path() / "viscera_scenes_XXXXXX").string();
+    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = t;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::vector<fs::path> shippedScenes() {
+  std::vector<fs::path> v;
+  for (const auto& e : fs::directory_iterator(fs::path(VISCERA_SOURCE_DIR) / "scenes"))
+    if (e.is_regular_file() && (e.path().extension() == ".xml" || e.path().extension() == ".scn")) v.push_back(e.path());
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+std::set<std::string> listing(const fs::path& dir) {
+  std::set<std::string> s;
+  for (const auto& e : fs::directory_iterator(dir)) s.insert(e.path().filename().string());
+  return s;
+}
+
+TEST(Scenes, ThereAreScenes) { EXPECT_GE(shippedScenes().size(), 3u); }
+
+TEST(Scenes, EveryShippedSceneRuns20StepsAndExports) {
+  const auto before = listing(fs::path(VISCERA_SOURCE_DIR) / "scenes");
+  for (const fs::path& path : shippedScenes()) {
+    SCOPED_TRACE(path.string());
+    TempDir tmp;
+    const fs::path out = tmp.path() / "out";
+    std::unique_ptr<Scene> scene;
+    try {
+      scene = Scene::build(io::readScene(path.string()));
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "does not load: " << e.what();
+      continue;
+    }
+    scene->setOutputDirectory(out.string());
+    try {
+      Simulation sim(*scene);
+      sim.begin();
+      for (int i = 0; i < 20; ++i) {
+        auto failure = sim.step();
+        ASSERT_FALSE(failure) << failure->str();
+      }
+      sim.end();
+      EXPECT_EQ(sim.steps(), 20);
+      EXPECT_NEAR(sim.time(), scene->startTime() + 20 * scene->dt(), 1e-12 * std::max(1.0, sim.time()));
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "fails: " << e.what();
+      continue;
+    }
+
+    // The state is finite and something moved (every shipped scene is loaded).
+    auto states = scene->all<MechanicalObject>();
+    ASSERT_FALSE(states.empty());
+    double moved = 0;
+    for (const auto* s : states) {
+      EXPECT_TRUE(s->x.allFinite()) << s->name();
+      EXPECT_TRUE(s->v.allFinite()) << s->name();
+      if (s->size()) moved = std::max(moved, (s->x - s->x0).colwise().norm().maxCoeff());
+    }
+    EXPECT_GT(moved, 0.0);
+
+    // A .pvd index and .vtu files; every file the index names exists.
+    ASSERT_TRUE(fs::is_directory(out)) << "nothing written to " << out;
+    int pvd = 0, vtu = 0;
+    for (const auto& e : fs::directory_iterator(out)) {
+      if (e.path().extension() == ".vtu") {
+        ++vtu;
+        EXPECT_GT(fs::file_size(e.path()), 0u) << e.path();
+      }
+      if (e.path().extension() != ".pvd") continue;
+      ++pvd;
+      const std::string index = slurp(e.path());
+      std::regex file(R"(file\s*=\s*"([^"]+)\")");
+      int named = 0;
+      for (std::sregex_iterator it(index.begin(), index.end(), file), end; it != end; ++it, ++named)
+        EXPECT_TRUE(fs::exists(out / (*it)[1].str())) << e.path() << " names missing " << (*it)[1];
+      EXPECT_GT(named, 0) << e.path() << " names no file:\n" << index;
+    }
+    EXPECT_GE(pvd, 1);
+    EXPECT_GE(vtu, 1);
+  }
+  // Nothing was written next to the scenes: exporters honour the output folder.
+  EXPECT_EQ(listing(fs::path(VISCERA_SOURCE_DIR) / "scenes"), before);
+}
+
+}  // namespace
