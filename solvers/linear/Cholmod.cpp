@@ -16,7 +16,8 @@ struct CholmodSolver::Impl {
   Impl() {
     cholmod_start(&common);
     common.supernodal = CHOLMOD_AUTO;
-    common.final_ll = false;  // keep LDL^T
+    common.final_ll = false;  // keep LDL^T where CHOLMOD factors simplicially
+    common.print = 0;         // failures are reported to the caller, not printed
   }
   ~Impl() {
     if (L) cholmod_free_factor(&L, &common);
@@ -93,6 +94,17 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
     message = d.common.status == CHOLMOD_NOT_POSDEF ? "matrix is not positive definite (CHOLMOD)"
                                                     : "CHOLMOD factorization failed";
     return false;
+  }
+  // CHOLMOD's supernodal factorization is LL^T and fails on an indefinite matrix; its simplicial
+  // LDL^T would not, so check D to behave the same whatever the size.
+  if (!d.L->is_super) {
+    const int* Lp = static_cast<const int*>(d.L->p);
+    const double* Lx = static_cast<const double*>(d.L->x);
+    for (size_t j = 0; j < d.L->n; ++j)
+      if (!(Lx[Lp[j]] > 0.0)) {
+        message = "matrix is not positive definite (CHOLMOD, pivot " + std::to_string(j) + ")";
+        return false;
+      }
   }
   return true;
 }

@@ -28,15 +28,15 @@ using Eigen::Vector3d;
 
 namespace {
 
-struct Run {
+struct Sim {
   std::unique_ptr<Scene> scene;
   std::unique_ptr<Simulation> sim;
   MechanicalObject* mo = nullptr;
   TetrahedronFEMForceField* fem = nullptr;
 };
 
-Run build(const std::string& xml) {
-  Run r;
+Sim build(const std::string& xml) {
+  Sim r;
   r.scene = Scene::build(io::parseSceneText(xml, "inline.xml"));
   r.sim = std::make_unique<Simulation>(*r.scene);
   r.mo = r.scene->all<MechanicalObject>().at(0);
@@ -134,14 +134,14 @@ PatchResult patchTest(const std::string& method, const Matrix3d& F, const Vector
   const std::array<int, 3> n{4, 4, 4};
   Matrix3Xd X = gridPoints(n, Vector3d(0, 0, 0), Vector3d(1.2, 1.0, 0.8));
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(-0.12, 0.12);  // x cell size (~0.3)
+  std::uniform_real_distribution<double> u(-0.06, 0.06);  // up to ~20% of the cell size (0.27..0.4)
   std::vector<int> boundary, interior;
   for (int k = 0, id = 0; k < n[2]; ++k)
     for (int j = 0; j < n[1]; ++j)
       for (int i = 0; i < n[0]; ++i, ++id) {
         const bool onBoundary = i == 0 || j == 0 || k == 0 || i == n[0] - 1 || j == n[1] - 1 || k == n[2] - 1;
         (onBoundary ? boundary : interior).push_back(id);
-        if (!onBoundary) X.col(id) += 0.25 * Vector3d(u(rng), u(rng), u(rng));
+        if (!onBoundary) X.col(id) += Vector3d(u(rng), u(rng), u(rng));
       }
   Matrix3Xd xAffine = (F * X).colwise() + c;
   Matrix3Xd x0 = xAffine;
@@ -159,7 +159,7 @@ PatchResult patchTest(const std::string& method, const Matrix3d& F, const Vector
     <FixedConstraint indices=")" + text(boundary) + R"("/>
   </Node>
 </Node>)";
-  Run r = build(xml);
+  Sim r = build(xml);
   auto bad = r.sim->step();
   EXPECT_FALSE(bad) << bad->str();
   PatchResult res;
@@ -294,8 +294,14 @@ double staticTipDeflection(const Beam& b, double P, const std::string& method) {
     <ConstantForceField indices="@tip.indices" totalForce="0 )" + num(-P) + R"( 0"/>
   </Node>
 </Node>)";
-  Run r = build(xml);
+  Sim r = build(xml);
   EXPECT_EQ(r.scene->all<TetrahedronFEMForceField>().size(), 1u);
+  // The applied load is exactly P: the sum of the forces of every field other than the elastic
+  // one (and the mass, without gravity here) at rest, to 1e-12.
+  Matrix3Xd f = Matrix3Xd::Zero(3, r.mo->size());
+  for (ForceField* ff : r.scene->all<ForceField>())
+    if (!dynamic_cast<TetrahedronFEMForceField*>(ff)) ff->addForce(r.mo->x, r.mo->v, f);
+  EXPECT_LT((f.rowwise().sum() - Vector3d(0, -P, 0)).norm(), 1e-12 * P);
   auto bad = r.sim->step();
   EXPECT_FALSE(bad) << bad->str();
   return -b.tipY(*r.mo);
@@ -303,33 +309,40 @@ double staticTipDeflection(const Beam& b, double P, const std::string& method) {
 
 }  // namespace
 
-// 2b. Cantilever under a tip load (method small, deflection / L = 4e-4): the tip deflection
-// converges to Timoshenko's P L^3 / (3 E I) + P L / (k G A) (Cowper's k) from below (linear
-// tetrahedra are too stiff in bending) on three refinements (error decreasing by > 1.5x each);
-// the finest mesh (9 x 9 x 41 nodes) within 3% (discretisation error plus the end effects of a
-// fully clamped face, which Timoshenko's theory ignores: ~1% at L/h = 10).
+// 2b. Cantilever (L/h = 10, nu = 0.3) under a tip load, method small, deflection / L = 4e-4,
+// against Timoshenko's P L^3 / (3 E I) + P L / (k G A) with Cowper's k = 10 (1 + nu) / (12 + 11 nu).
+// Linear tetrahedra lock in bending, so they converge slowly and from below: on three meshes
+// halving the cell size (6 x 6 x 26, 11 x 11 x 51, 21 x 21 x 101 nodes; errors ~20%, 6.6%, 2.3%)
+// the error must fall by > 2x each time, the deflection must stay below the theory (+1%), the
+// finest mesh must be within 3%, and the Richardson extrapolation of the three (observed order
+// p) within 1% of the theory (the fully clamped face and the 3D end effects, which beam theory
+// ignores, are ~0.5%).
 TEST(Verification, CantileverStaticDeflectionTimoshenko) {
   Beam b;
   const double P = 1.0;
   const double exact = P * std::pow(b.L, 3) / (3 * b.E * b.I()) + P * b.L / (b.kShear() * b.G() * b.A());
-  double prevErr = 1e300;
-  for (auto n : {std::array<int, 3>{3, 3, 11}, std::array<int, 3>{5, 5, 21}, std::array<int, 3>{9, 9, 41}}) {
+  std::vector<double> d;
+  for (auto n : {std::array<int, 3>{6, 6, 26}, std::array<int, 3>{11, 11, 51}, std::array<int, 3>{21, 21, 101}}) {
     b.n = n;
     const auto t0 = std::chrono::steady_clock::now();
-    const double d = staticTipDeflection(b, P, "small");
-    const double err = std::abs(d - exact) / exact;
-    std::printf("  %dx%dx%d nodes: tip deflection %.6e, Timoshenko %.6e, error %.2f%% (%.2f s)\n", n[0], n[1], n[2], d, exact,
-                100 * err, seconds(t0));
-    EXPECT_LT(d, exact * 1.01) << "linear tetrahedra should not be softer than the beam";
-    EXPECT_LT(err * 1.5, prevErr) << "the error must decrease with refinement";
-    prevErr = err;
+    d.push_back(staticTipDeflection(b, P, "small"));
+    std::printf("  %dx%dx%d nodes: tip deflection %.6e, Timoshenko %.6e, error %.2f%% (%.2f s)\n", n[0], n[1], n[2], d.back(),
+                exact, 100 * (d.back() / exact - 1), seconds(t0));
+    EXPECT_LT(d.back(), exact * 1.01) << "linear tetrahedra should not be softer than the beam";
   }
-  EXPECT_LT(prevErr, 0.03);
+  for (int k = 1; k < 3; ++k) EXPECT_LT(2 * std::abs(d[k] - exact), std::abs(d[k - 1] - exact)) << "refinement " << k;
+  EXPECT_NEAR(d[2] / exact, 1.0, 0.03);
+  const double ratio = (d[1] - d[0]) / (d[2] - d[1]);
+  ASSERT_GT(ratio, 1.0);
+  const double p = std::log2(ratio), extrapolated = d[2] + (d[2] - d[1]) / (ratio - 1);
+  std::printf("  observed order %.2f, Richardson extrapolation %.6e (%+.2f%%)\n", p, extrapolated, 100 * (extrapolated / exact - 1));
+  EXPECT_NEAR(extrapolated / exact, 1.0, 0.01);
   // At this load the corotational method gives the same answer (geometric nonlinearity ~(d/L)^2).
-  b.n = {5, 5, 21};
-  const double dSmall = staticTipDeflection(b, P, "small"), dLarge = staticTipDeflection(b, P, "large");
-  EXPECT_NEAR(dLarge, dSmall, 1e-3 * dSmall);
+  b.n = {6, 6, 26};
+  const double dLarge = staticTipDeflection(b, P, "large");
+  EXPECT_NEAR(dLarge, d[0], 1e-3 * d[0]);
 }
+
 namespace {
 
 // Euler-Bernoulli first clamped-free mode: beta1 L = 1.87510407.
@@ -360,8 +373,13 @@ std::vector<double> tipHistory(const Beam& b, const std::string& method, double 
 )" + b.material(method) + R"(
   </Node>
 </Node>)";
-  Run r = build(xml);
+  Sim r = build(xml);
   EXPECT_LT((r.mo->x0 - X).norm(), 1e-12 * b.L);
+  // Lumped mass: the nodal masses add up to rho * volume (1e-12).
+  const auto masses = r.scene->all<Mass>();
+  EXPECT_EQ(masses.size(), 1u);
+  const double total = b.rho * b.A() * b.L;
+  EXPECT_NEAR(masses.at(0)->nodeMass().sum(), total, 1e-12 * total);
   std::vector<double> y{b.tipY(*r.mo)};
   for (int s = 0; s < steps; ++s) {
     auto bad = r.sim->step();
@@ -377,32 +395,34 @@ std::vector<double> tipHistory(const Beam& b, const std::string& method, double 
 }  // namespace
 
 // 2c. First bending frequency of the cantilever (L/h = 10), released from a small velocity in the
-// first mode shape (tip amplitude ~1e-3 L), implicit Euler without damping at dt = T/200 (its
-// period error is (omega dt)^2 / 3 ~ 3e-4): the period measured from the zero crossings of the
-// tip over ~2 cycles matches Euler-Bernoulli's 2 pi / (1.8751^2 sqrt(EI / (rho A L^4))) within
-// 5% on a 3 x 9 x 81-node mesh (its static stiffness is ~8% too high, so its frequency ~4%; the
-// Timoshenko correction at L/h = 10 is ~ -1%). Small and large must agree (1e-3).
+// first mode shape (tip amplitude ~1e-3 L), implicit Euler without damping at dt = T/100 (its
+// period error is (omega dt)^2 / 3 ~ 1e-3; its numerical damping only lowers the amplitude): the
+// period measured from the zero crossings of the tip over ~1.7 cycles matches Euler-Bernoulli's
+// 2 pi / (1.8751^2 sqrt(EI / (rho A L^4))) within 5% on a 3 x 9 x 81-node mesh (method small;
+// the mesh's static stiffness is ~8% too high, so its frequency ~4%; the Timoshenko correction
+// at L/h = 10 is below 1%). On a coarse mesh, large and small give the same period (1e-3) at
+// this amplitude.
 TEST(Verification, CantileverFirstBendingFrequency) {
   Beam b;
-  b.n = {3, 9, 81};
   const double w1 = eulerBernoulliOmega1(b), T1 = 2 * M_PI / w1;
-  const double dt = T1 / 200;
-  double period[2];
-  int idx = 0;
-  for (const char* m : {"small", "large"}) {
+  const double dt = T1 / 100;
+  auto period = [&](const char* m, std::array<int, 3> n) {
+    b.n = n;
     const auto t0 = std::chrono::steady_clock::now();
-    const auto y = tipHistory(b, m, dt, 450, 0, 0, 1e-3 * b.L * w1);
+    const auto y = tipHistory(b, m, dt, 170, 0, 0, 1e-3 * b.L * w1);
     const auto zc = zeroCrossings(y, dt);
-    ASSERT_GE(zc.size(), 3u) << m;
+    EXPECT_GE(zc.size(), 3u) << m;
+    if (zc.size() < 3) return 0.0;
     const double T = 2 * (zc.back() - zc.front()) / (zc.size() - 1);
-    period[idx++] = T;
-    std::printf("  %s: period %.5f, Euler-Bernoulli %.5f, frequency error %+.2f%% (%zu zero crossings, %.2f s)\n", m, T, T1,
-                100 * (T1 / T - 1), zc.size(), seconds(t0));
-    EXPECT_NEAR(T1 / T, 1.0, 0.05) << m;
-    // Half periods are regular (a single mode dominates): each within 2% of the mean.
+    std::printf("  %s %dx%dx%d: period %.5f, Euler-Bernoulli %.5f, frequency error %+.2f%% (%zu zero crossings, %.2f s)\n", m, n[0],
+                n[1], n[2], T, T1, 100 * (T1 / T - 1), zc.size(), seconds(t0));
+    // Half periods are regular (one mode dominates): each within 2% of the mean.
     for (size_t k = 1; k < zc.size(); ++k) EXPECT_NEAR(zc[k] - zc[k - 1], T / 2, 0.02 * T) << m;
-  }
-  EXPECT_NEAR(period[1], period[0], 1e-3 * period[0]);
+    return T;
+  };
+  EXPECT_NEAR(T1 / period("small", {3, 9, 81}), 1.0, 0.05);
+  const double Ts = period("small", {3, 3, 21}), Tl = period("large", {3, 3, 21});
+  EXPECT_NEAR(Tl, Ts, 1e-3 * Ts);
 }
 
 // 2d. Rayleigh damping: the tip's logarithmic decrement gives the first mode's damping ratio,
@@ -439,5 +459,153 @@ TEST(Verification, RayleighDampingLogDecrement) {
     std::printf("  alpha %.4g beta %.4g: omega %.4f, zeta %.5f (uncorrected %.5f), target %.5f, error %+.2f%%\n", c.alpha, c.beta,
                 omega, zeta, zetaNaive, target, 100 * (zeta / target - 1));
     EXPECT_NEAR(zeta / target, 1.0, 0.10);
+  }
+}
+
+// 2e. Free fall: with no constraint, implicit Euler under gravity g with a uniform initial velocity
+// v0 gives exactly v_N = v0 + g N dt and x_N = x_0 + v0 N dt + g dt^2 N (N + 1) / 2 (the elastic
+// force and K v vanish for a translation). Direct solver: 1e-12 relative; CG (tolerance 1e-14):
+// 1e-10 relative. Masses uniform and lumped (non-uniform), methods small and large.
+TEST(Verification, FreeFallIsExactForImplicitEuler) {
+  struct Case {
+    const char *method, *mass, *linear;
+    double tol;
+  };
+  for (Case c : {Case{"small", "<UniformMass totalMass=\"2\"/>", "<SparseLDLSolver/>", 1e-12},
+                 Case{"large", "<DiagonalMass massDensity=\"3\"/>", "<SparseLDLSolver/>", 1e-12},
+                 Case{"large", "<DiagonalMass massDensity=\"3\"/>",
+                      "<CGLinearSolver iterations=\"200\" tolerance=\"1e-14\" threshold=\"1e-30\"/>", 1e-10}}) {
+    const double dt = 0.01;
+    const int N = 60;
+    const Vector3d g(0.5, -9.81, 1.25), v0(1.0, 2.0, -0.5);
+    const std::string xml = R"(
+<Node name="root" dt=")" + num(dt) + R"(" gravity="0.5 -9.81 1.25">
+  <Node name="body">
+    <EulerImplicitSolver/>
+    )" + c.linear + R"(
+    <RegularGridTopology name="grid" n="3 3 4" min="0 0 0" max="1 1 1.5"/>
+    <MechanicalObject name="dofs" velocity="1 2 -0.5"/>
+    <TetrahedronSetTopologyContainer name="tetra"/>
+    <Hexa2TetraTopologicalMapping input="@grid" output="@tetra" swapping="true"/>
+    )" + c.mass + R"(
+    <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method=")" + c.method + R"("/>
+  </Node>
+</Node>)";
+    Sim r = build(xml);
+    const Matrix3Xd x0 = r.mo->x;
+    for (int s = 0; s < N; ++s) {
+      auto bad = r.sim->step();
+      ASSERT_FALSE(bad) << bad->str();
+    }
+    const double t = N * dt;
+    const Vector3d vExact = v0 + g * t;
+    const Vector3d dxExact = v0 * t + g * dt * dt * N * (N + 1) / 2.0;
+    double ev = 0, ex = 0;
+    for (int i = 0; i < r.mo->size(); ++i) {
+      ev = std::max(ev, (r.mo->v.col(i) - vExact).norm() / vExact.norm());
+      ex = std::max(ex, (r.mo->x.col(i) - x0.col(i) - dxExact).norm() / dxExact.norm());
+    }
+    std::printf("  %s, %s: velocity error %.2e, position error %.2e\n", c.method, c.linear, ev, ex);
+    EXPECT_LT(ev, c.tol) << c.method << " " << c.linear;
+    EXPECT_LT(ex, c.tol) << c.method << " " << c.linear;
+    EXPECT_NEAR(r.sim->time(), t, 1e-12);
+  }
+}
+
+namespace {
+
+// Largest relative change of a tetrahedron edge length between rest and current positions.
+double maxEdgeStrain(const TetList& T, const Matrix3Xd& X, const Matrix3Xd& x) {
+  double m = 0;
+  for (int e = 0; e < T.cols(); ++e)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) {
+        const double L0 = (X.col(T(a, e)) - X.col(T(b, e))).norm(), L = (x.col(T(a, e)) - x.col(T(b, e))).norm();
+        m = std::max(m, std::abs(L / L0 - 1));
+      }
+  return m;
+}
+
+}  // namespace
+
+// 2f. Rotation invariance. (i) A beam placed rigidly rotated by 90 deg (rest = unrotated): large
+// and polar see no stress (von Mises < 1e-9 E) and do not move (1e-9 over 10 steps), small sees a
+// spurious stress of the order of E (> 0.3 E) and moves. (ii) The beam spinning freely (omega = 1
+// about x through its centre, a quarter turn in 314 steps): with large, it turns as a rigid body
+// (edge lengths within 1e-3, max von Mises < 1e-3 E, turned angle within 2% of omega t) while
+// with small, whose linear forces are blind to infinitesimal rotations, it does not rotate but
+// grows along the tangent of the rotation (x = X + t omega x (X - c): edges stretched by > 50%,
+// axis turned by atan(omega t) to 1e-6) without any (linear) stress: the small method's error
+// under rotation shows as a spurious stress for a finite rotation (i) and as a spurious
+// deformation for a rotational velocity (ii).
+TEST(Verification, CorotationalBeamIsRotationInvariant) {
+  const double E = 1e4;
+  const std::array<int, 3> n{3, 3, 9};
+  const Matrix3Xd X = gridPoints(n, Vector3d(-0.5, -0.5, 0), Vector3d(0.5, 0.5, 4));
+  const Vector3d centre(0, 0, 2);
+  auto scene = [&](const std::string& method, const Matrix3Xd& x, const Matrix3Xd& v, double dt) {
+    return build(R"(
+<Node name="root" dt=")" + num(dt) + R"(" gravity="0 0 0">
+  <Node name="beam">
+    <EulerImplicitSolver/>
+    <SparseLDLSolver/>
+    <RegularGridTopology name="grid" n="3 3 9" min="-0.5 -0.5 0" max="0.5 0.5 4"/>
+    <MechanicalObject name="dofs" position=")" + text(x) + R"(" rest_position=")" + text(X) + R"(" velocity=")" + text(v) + R"("/>
+    <TetrahedronSetTopologyContainer name="tetra"/>
+    <Hexa2TetraTopologicalMapping input="@grid" output="@tetra" swapping="true"/>
+    <DiagonalMass massDensity="1"/>
+    <TetrahedronFEMForceField name="fem" youngModulus=")" + num(E) + R"(" poissonRatio="0.3" method=")" + method + R"("/>
+  </Node>
+</Node>)");
+  };
+  // (i) Rigidly rotated placement.
+  const Matrix3d Q = Eigen::AngleAxisd(M_PI / 2, Vector3d::UnitX()).toRotationMatrix();
+  const Matrix3Xd xRot = (Q * (X.colwise() - centre)).colwise() + centre;
+  const Matrix3Xd zero = Matrix3Xd::Zero(3, X.cols());
+  for (const char* m : {"small", "large", "polar"}) {
+    Sim r = scene(m, xRot, zero, 0.01);
+    const double vm = r.fem->vonMises(r.mo->x).maxCoeff();
+    for (int s = 0; s < 10; ++s) ASSERT_FALSE(r.sim->step());
+    const double moved = (r.mo->x - xRot).cwiseAbs().maxCoeff();
+    std::printf("  rotated placement, %s: max von Mises / E %.2e, moved %.2e in 10 steps\n", m, vm / E, moved);
+    if (std::string(m) == "small") {
+      EXPECT_GT(vm, 0.3 * E);
+      EXPECT_GT(moved, 1e-3);
+    } else {
+      EXPECT_LT(vm, 1e-9 * E) << m;
+      EXPECT_LT(moved, 1e-9) << m;
+    }
+  }
+  // (ii) Spinning.
+  const double omega = 1.0, dt = 0.005;
+  const int steps = 314;  // omega t = 1.57
+  Matrix3Xd v(3, X.cols());
+  for (int i = 0; i < X.cols(); ++i) v.col(i) = (omega * Vector3d::UnitX()).cross(X.col(i) - centre);
+  for (const char* m : {"large", "small"}) {
+    Sim r = scene(m, X, v, dt);
+    for (int s = 0; s < steps; ++s) {
+      auto bad = r.sim->step();
+      ASSERT_FALSE(bad) << m << ": " << bad->str();
+    }
+    const double strain = maxEdgeStrain(r.fem->tetrahedra(), X, r.mo->x);
+    const double vm = r.fem->vonMises(r.mo->x).maxCoeff();
+    // Angle turned by the beam axis (root face centre -> tip face centre) about x.
+    const int face = n[0] * n[1];
+    const Vector3d axis = r.mo->x.rightCols(face).rowwise().mean() - r.mo->x.leftCols(face).rowwise().mean();
+    const double turned = std::atan2(-axis.y(), axis.z());  // rotation about +x takes +z towards -y
+    std::printf("  spinning, %s: turned %.4f rad (omega t = %.4f), max edge strain %.2e, max von Mises / E %.2e\n", m, turned,
+                omega * steps * dt, strain, vm / E);
+    if (std::string(m) == "large") {
+      EXPECT_LT(strain, 1e-3);
+      EXPECT_LT(vm, 1e-3 * E);
+      EXPECT_NEAR(turned, omega * steps * dt, 0.02 * omega * steps * dt);
+    } else {
+      EXPECT_GT(strain, 0.5);
+      // The linear dynamics exactly: the velocity, an infinitesimal rotation, is in the kernel of
+      // the small-strain stiffness, so x = X + t omega x (X - c): the axis turns by atan(omega t)
+      // and the linear stress stays zero while the beam is stretched by 86%.
+      EXPECT_NEAR(turned, std::atan(omega * steps * dt), 1e-6);
+      EXPECT_LT(vm, 1e-9 * E);
+    }
   }
 }
