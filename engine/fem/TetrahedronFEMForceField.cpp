@@ -124,12 +124,14 @@ void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor
     const Mat34 h = rot_[e].transpose() * r.G;
     const double a = -kFactor * r.volume;
     const Eigen::Matrix4d gg = r.G.transpose() * r.G;
+    // Block (j, i) is the transpose of block (i, j): compute the upper half only.
     for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) {
-        auto B = K.block(slots_[e][4 * i + j]);
-        B.noalias() += (a * r.lame.lambda) * h.col(i) * h.col(j).transpose();
-        B.noalias() += (a * r.lame.mu) * h.col(j) * h.col(i).transpose();
+      for (int j = i; j < 4; ++j) {
+        Eigen::Matrix3d B = (a * r.lame.lambda) * h.col(i) * h.col(j).transpose() +
+                            (a * r.lame.mu) * h.col(j) * h.col(i).transpose();
         B.diagonal().array() += a * r.lame.mu * gg(i, j);
+        K.block(slots_[e][4 * i + j]) += B;
+        if (j != i) K.block(slots_[e][4 * j + i]) += B.transpose();
       }
   });
 }
