@@ -2,6 +2,7 @@
 // code, stdout and stderr, and give each test its own temporary folder.
 #pragma once
 
+#include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
 #include <sys/wait.h>
@@ -34,26 +35,7 @@ inline std::string shellQuote(const std::string& s) {
   return q + "'";
 }
 
-// A fresh folder under the system temp folder, removed when the object goes away.
-class TempDir {
- public:
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "viscera_cli_XXXXXX").string();
-    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
+using viscera::test_support::TempDir;
 
 struct RunResult {
   int rc = -1;  // exit code, or -1 if the process did not exit normally

@@ -1,5 +1,6 @@
 // The scene graph: links (@name, @../name, @/root/child/name, @name.field), SOFA elements and
 // attributes accepted with notes, and editing a SceneDesc before building (as batch studies do).
+#include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -21,22 +22,7 @@ using namespace viscera;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "viscera_graph_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
-};
+using viscera::test_support::TempDir;
 
 // A 3 x 3 x 3 grid (27 nodes, z layers of 9) with selections in /root/body and constraints in
 // /root/body/inner that reach them by every kind of link.

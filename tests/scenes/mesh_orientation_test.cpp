@@ -5,6 +5,7 @@
 // Regression test for the "polar" health check: with negatively oriented elements the polar frame
 // is a reflection, and TetrahedronFEMForceField::invertedElements reported every element as
 // inverted at the first step (see the report that came with this test).
+#include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -23,22 +24,7 @@ using namespace viscera;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "viscera_orient_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using viscera::test_support::TempDir;
 
 void write(const fs::path& p, const std::string& s) { std::ofstream(p) << s; }
 

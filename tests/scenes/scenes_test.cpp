@@ -1,6 +1,7 @@
 // Every scene shipped in scenes/ (found at test time, so new scenes are covered without editing this
 // file) loads, runs 20 steps without failure, and writes a .pvd index with the .vtu files it names
 // into the output folder, not next to the scene.
+#include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -31,22 +32,7 @@ std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-class TempDir {
- public:
-  TempDir() {
-    std::string t = (fs::temp_directory_path() / "viscera_scenes_XXXXXX").string();
-    if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = t;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using viscera::test_support::TempDir;
 
 std::vector<fs::path> shippedScenes() {
   std::vector<fs::path> v;
