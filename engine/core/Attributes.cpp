@@ -118,12 +118,7 @@ void parseAttrText(const AttrSpec& spec, const std::string& text, const UnitSyst
   splitNumbersAndUnit(text, out.nums, unit);
   if (!unit.empty()) {
     if (!spec.hasUnit) throw std::invalid_argument("takes no unit, got '" + unit + "'");
-    Unit u;
-    try {
-      u = parseUnit(unit);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(e.what());
-    }
+    const Unit u = parseUnit(unit);
     if (!(u.dim == spec.dim))
       throw std::invalid_argument("unit '" + unit + "' is incompatible (dimension " + u.dim.str() + ", expected " +
                                   spec.dim.str() + ")");

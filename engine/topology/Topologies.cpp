@@ -14,7 +14,6 @@ namespace viscera {
 
 namespace {
 
-const Eigen::Matrix3Xd kNoPoints;
 const TetList kNoTets;
 
 class RegularGridTopology : public Component, public Topology {
