@@ -35,16 +35,7 @@ void MechanicalObject::init() {
       }
   }
   if (x.cols() == 0) throw error("has no positions: set `position` or put a loader or grid topology in its node");
-  // Placement: scale, then rotate (degrees, x then y then z), then translate.
-  const auto& s = attrs_.reals("scale3d");
-  const auto& r = attrs_.reals("rotation");
-  const auto& t = attrs_.reals("translation");
-  Eigen::Matrix3d R = (Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-                       Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
-                       Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX()))
-                          .toRotationMatrix();
-  Eigen::Vector3d S(s[0], s[1], s[2]), T(t[0], t[1], t[2]);
-  for (int i = 0; i < x.cols(); ++i) x.col(i) = R * (S.asDiagonal() * x.col(i)) + T;
+  applyPlacement(attrs_, x);
   x0 = x;
   if (attrs_.isSet("rest_position")) {
     x0 = toPoints(linkedReals("rest_position"));
@@ -74,6 +65,18 @@ bool MechanicalObject::field(const std::string& name, FieldValue& out) const {
   if (!m) return false;
   out.values.assign(m->data(), m->data() + m->size());
   return true;
+}
+
+void applyPlacement(const Attributes& attrs, Eigen::Matrix3Xd& points) {
+  const auto& s = attrs.reals("scale3d");
+  const auto& r = attrs.reals("rotation");
+  const auto& t = attrs.reals("translation");
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  const Eigen::Vector3d S(s[0], s[1], s[2]), T(t[0], t[1], t[2]);
+  for (int i = 0; i < points.cols(); ++i) points.col(i) = R * (S.asDiagonal() * points.col(i)) + T;
 }
 
 MechanicalObject& contextState(Component& c, const std::string& linkAttr) {

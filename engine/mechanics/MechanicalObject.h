@@ -26,6 +26,10 @@ class MechanicalObject : public Component {
 
 void registerMechanicalObject(Registry& r);
 
+// Applies a component's `scale3d`, then `rotation` (degrees about x, then y, then z), then
+// `translation` to points (MechanicalObject and mesh loaders declare these attributes).
+void applyPlacement(const Attributes& attrs, Eigen::Matrix3Xd& points);
+
 // The MechanicalObject a component acts on: its `mstate` link if set, else the nearest in its
 // context. Throws a clear error if there is none.
 MechanicalObject& contextState(Component& c, const std::string& linkAttr = "mstate");

@@ -1,6 +1,5 @@
 // Topologies: RegularGridTopology, Hexa2TetraTopologicalMapping, TetrahedronSetTopologyContainer
 // and the mesh loaders (MeshGmshLoader, MeshVTKLoader).
-#include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
 
@@ -127,16 +126,7 @@ class MeshLoader : public Component, public Topology {
     } catch (const Error& e) {
       throw error("filename", e.what());
     }
-    const auto& s = attrs_.reals("scale3d");
-    const auto& r = attrs_.reals("rotation");
-    const auto& t = attrs_.reals("translation");
-    Eigen::Matrix3d R = (Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-                         Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
-                         Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX()))
-                            .toRotationMatrix();
-    for (int i = 0; i < mesh_.points.cols(); ++i)
-      mesh_.points.col(i) = R * (Eigen::Vector3d(s[0], s[1], s[2]).asDiagonal() * mesh_.points.col(i)) +
-                            Eigen::Vector3d(t[0], t[1], t[2]);
+    applyPlacement(attrs_, mesh_.points);
   }
   const Eigen::Matrix3Xd& points() const override { return mesh_.points; }
   const TetList& tetrahedra() const override { return mesh_.tets; }
