@@ -37,6 +37,7 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
   node.collect(comps);
   for (Component* c : comps) {
     if (c == &owner || dynamic_cast<OdeSolver*>(c) || dynamic_cast<Observer*>(c)) continue;
+    if (!dynamic_cast<Mass*>(c) && !dynamic_cast<ForceField*>(c) && !dynamic_cast<ProjectiveConstraint*>(c)) continue;
     owner.scene().initComponent(*c);
     if (auto* m = dynamic_cast<Mass*>(c); m && &m->mstate() == state_) {
       mass_ += m->nodeMass();

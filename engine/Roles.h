@@ -77,14 +77,34 @@ struct Diverged {
   std::string str() const;
 };
 
+class MechanicalSystem;
+
+// How an extra force applied during a step changes the result: the step's linear system is
+// A = mFactor M + kFactor K (fixed nodes projected out), and a force F moves the end-of-step
+// positions by xFactor A^-1 F and velocities by vFactor A^-1 F. Constraint corrections use it.
+struct StepResponse {
+  double mFactor = 0, kFactor = 0, xFactor = 0, vFactor = 0;
+};
+
 // Integrates the mechanical objects of its node (and sub-nodes) over one time step.
 class OdeSolver {
  public:
   virtual ~OdeSolver() = default;
+  // The response to a force added during a step of size dt; nothing if the solver has no
+  // linear system (or is idle).
+  virtual std::optional<StepResponse> stepResponse(double dt) const { return std::nullopt; }
   // Advances from time t to t + dt; returns a failure instead of writing bad state.
   virtual std::optional<Diverged> step(double t, double dt, int stepIndex) = 0;
   // Statistics of the last step (linear iterations, residual), for summaries.
   virtual int lastLinearIterations() const { return 0; }
+};
+
+// Sets a kinematically driven state (an instrument) for time t: called with the start time before
+// the first step and with the end time of each step before it is integrated.
+class Driver {
+ public:
+  virtual ~Driver() = default;
+  virtual void drive(double t) = 0;
 };
 
 // Reads the state at the end of a step (exporters, recorders, metrics).

@@ -1,9 +1,18 @@
 #include "engine/Simulation.h"
 
+#include "engine/collision/Collision.h"
+
 namespace viscera {
 
 Simulation::Simulation(Scene& scene) : scene_(scene) {
   scene_.init();
+  drivers_ = scene_.all<Driver>();
+  auto pipes = scene_.all<CollisionPipeline>();
+  if (!pipes.empty()) pipeline_ = pipes.front();
+  auto cs = scene_.all<ConstraintSolver>();
+  if (!cs.empty()) constraints_ = cs.front();
+  if (!pipeline_ && (!scene_.all<SphereCollisionModel>().empty() || !scene_.all<SurfaceCollisionModel>().empty()))
+    scene_.addNote("note: the scene has collision models but no CollisionPipeline: nothing collides");
   solvers_ = scene_.all<OdeSolver>();
   observers_ = scene_.all<Observer>();
   time_ = scene_.startTime();
@@ -18,8 +27,16 @@ void Simulation::begin() {
 std::optional<Diverged> Simulation::step() {
   begin();
   const double dt = scene_.dt();
+  const double tEnd = scene_.startTime() + (steps_ + 1) * dt;
+  // Instruments to their end-of-step pose, contacts against the tissue at the step start, the
+  // (free) motion of every body, then the contact constraints.
+  for (Driver* d : drivers_) d->drive(tEnd);
+  if (pipeline_) pipeline_->detect();
   for (OdeSolver* s : solvers_)
     if (auto bad = s->step(time_, dt, steps_ + 1)) return bad;
+  if (pipeline_ && constraints_)
+    if (auto bad = constraints_->solve(*pipeline_, dt, steps_ + 1, tEnd)) return bad;
+  if (pipeline_) pipeline_->finish();
   ++steps_;
   // Accumulate the time from the step count so that long runs do not drift.
   time_ = scene_.startTime() + steps_ * dt;

@@ -10,6 +10,9 @@
 
 namespace viscera {
 
+class CollisionPipeline;
+class ConstraintSolver;
+
 class Simulation {
  public:
   // Initialises the scene if needed and collects its solvers and observers.
@@ -27,9 +30,15 @@ class Simulation {
   Scene& scene() { return scene_; }
   // Linear iterations of the last step, summed over solvers.
   int lastLinearIterations() const;
+  // The collision pipeline, if the scene has one.
+  CollisionPipeline* pipeline() const { return pipeline_; }
+  ConstraintSolver* constraintSolver() const { return constraints_; }
 
  private:
   Scene& scene_;
+  std::vector<Driver*> drivers_;
+  CollisionPipeline* pipeline_ = nullptr;
+  ConstraintSolver* constraints_ = nullptr;
   std::vector<OdeSolver*> solvers_;
   std::vector<Observer*> observers_;
   double time_ = 0;

@@ -8,10 +8,14 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <functional>
 #include <memory>
 #include <sstream>
 
+#include "apps/viscera/TrajectoryCommand.h"
 #include "engine/Simulation.h"
+#include "engine/collision/Collision.h"
+#include "engine/rigid/RigidObject.h"
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
@@ -26,7 +30,7 @@ struct RunOptions {
   std::string scene;
   int steps = -1;
   double time = -1;
-  std::string out, summary, stateOut;
+  std::string out, summary, stateOut, wrench;
   int threads = 0;
   bool quiet = false;
 };
@@ -42,11 +46,12 @@ std::string jsonEscape(const std::string& s) {
   return o;
 }
 
-std::unique_ptr<Scene> loadScene(const std::string& path, bool quiet) {
-  auto scene = Scene::build(io::readScene(path));
-  if (!quiet)
-    for (const auto& n : scene->notes()) std::cerr << n << "\n";
-  return scene;
+std::unique_ptr<Scene> loadScene(const std::string& path) { return Scene::build(io::readScene(path)); }
+
+// Notes from reading and initialising the scene (ignored elements, idle solvers, ...).
+void printNotes(const Scene& scene, bool quiet) {
+  if (quiet) return;
+  for (const auto& n : scene.notes()) std::cerr << n << "\n";
 }
 
 std::string formatDuration(double s) {
@@ -61,9 +66,26 @@ std::string formatDuration(double s) {
 int cmdRun(const RunOptions& o) {
   std::unique_ptr<tbb::global_control> threads;
   if (o.threads > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o.threads);
-  auto scene = loadScene(o.scene, o.quiet);
+  auto scene = loadScene(o.scene);
   if (!o.out.empty()) scene->setOutputDirectory(o.out);
   Simulation sim(*scene);  // initialises: every input error surfaces before anything is written
+  printNotes(*scene, o.quiet);
+  // Contact wrench on each instrument, every step.
+  auto bodies = scene->all<RigidObject>();
+  std::ostringstream wrench;
+  wrench << std::setprecision(9);
+  if (!o.wrench.empty()) {
+    wrench << "t";
+    for (const auto* b : bodies)
+      for (const char* c : {"fx", "fy", "fz", "tx", "ty", "tz", "contacts"})
+        wrench << "," << (bodies.size() > 1 ? b->name() + "." : std::string()) << c;
+    wrench << "\n";
+  }
+  struct Peak {
+    double force = 0, time = 0;
+    long contactSteps = 0;
+  };
+  std::vector<Peak> peaks(bodies.size());
   int total = o.steps >= 0 ? o.steps : o.time >= 0 ? static_cast<int>(std::llround(o.time / scene->dt())) : 100;
   const bool progress = !o.quiet && isatty(STDERR_FILENO) && !std::getenv("CI");
 
@@ -74,6 +96,18 @@ int cmdRun(const RunOptions& o) {
   for (int i = 0; i < total; ++i) {
     failure = sim.step();
     if (failure) break;
+    for (size_t k = 0; k < bodies.size(); ++k) {
+      const RigidObject* b = bodies[k];
+      if (b->force.norm() > peaks[k].force) peaks[k] = {b->force.norm(), sim.time(), peaks[k].contactSteps};
+      peaks[k].contactSteps += b->contacts > 0;
+    }
+    if (!o.wrench.empty()) {
+      wrench << sim.time();
+      for (const auto* b : bodies)
+        wrench << "," << b->force.x() << "," << b->force.y() << "," << b->force.z() << "," << b->torque.x() << ","
+               << b->torque.y() << "," << b->torque.z() << "," << b->contacts;
+      wrench << "\n";
+    }
     auto now = std::chrono::steady_clock::now();
     if (progress && (now - lastPrint > std::chrono::milliseconds(250) || i + 1 == total)) {
       lastPrint = now;
@@ -107,9 +141,24 @@ int cmdRun(const RunOptions& o) {
       j << (k ? "," : "") << "\n    {\"name\": \"" << jsonEscape(s->name()) << "\", \"nodes\": " << s->size()
         << ", \"max_displacement\": " << maxDisp << "}";
     }
-    j << "\n  ]\n}\n";
+    j << "\n  ],\n  \"instruments\": [";
+    for (size_t k = 0; k < bodies.size(); ++k) {
+      const auto* b = bodies[k];
+      j << (k ? "," : "") << "\n    {\"name\": \"" << jsonEscape(b->name()) << "\", \"position\": [" << b->p.x() << ", "
+        << b->p.y() << ", " << b->p.z() << "], \"force\": [" << b->force.x() << ", " << b->force.y() << ", "
+        << b->force.z() << "], \"torque\": [" << b->torque.x() << ", " << b->torque.y() << ", " << b->torque.z()
+        << "], \"contacts\": " << b->contacts << ", \"peak_force\": " << peaks[k].force
+        << ", \"peak_force_time\": " << peaks[k].time << ", \"steps_in_contact\": " << peaks[k].contactSteps << "}";
+    }
+    j << "\n  ]";
+    if (const CollisionPipeline* p = sim.pipeline())
+      j << ",\n  \"contact\": {\"response\": \""
+        << (p->settings().response == ContactSettings::Response::Penalty ? "penalty" : "constraint")
+        << "\", \"max_contacts\": " << p->maxContacts() << "}";
+    j << "\n}\n";
     io::writeFileAtomic(o.summary, j.str());
   }
+  if (!o.wrench.empty()) io::writeFileAtomic(o.wrench, wrench.str());
   if (!o.stateOut.empty()) {
     std::ostringstream c;
     c << std::setprecision(17) << "object,node,x,y,z\n";
@@ -130,8 +179,9 @@ int cmdRun(const RunOptions& o) {
 }
 
 int cmdCheck(const std::string& path) {
-  auto scene = loadScene(path, false);
+  auto scene = loadScene(path);
   scene->init();
+  printNotes(*scene, false);
   int objects = static_cast<int>(scene->all<MechanicalObject>().size());
   std::cout << path << ": ok (" << objects << " mechanical object" << (objects == 1 ? "" : "s") << ", dt = " << scene->dt()
             << ", units " << scene->units().str() << ")\n";
@@ -207,6 +257,7 @@ int main(int argc, char** argv) {
   run->add_option("--out", ro.out, "output folder for exporters (default: the scene's folder)");
   run->add_option("--summary", ro.summary, "write a JSON summary (steps, times, largest displacements)");
   run->add_option("--state-out", ro.stateOut, "write final positions as CSV (object,node,x,y,z)");
+  run->add_option("--wrench", ro.wrench, "write the contact wrench on each instrument every step as CSV (t,fx,fy,fz,tx,ty,tz,contacts)");
   run->add_option("--threads", ro.threads, "worker threads (default: all cores)")->check(CLI::PositiveNumber);
   run->add_flag("--quiet", ro.quiet, "no progress or notes");
   std::string checkScene;
@@ -215,6 +266,9 @@ int main(int argc, char** argv) {
   std::string compName;
   auto* comps = app.add_subcommand("components", "list components and their attributes");
   comps->add_option("name", compName, "one component");
+
+  std::function<int()> trajectoryAction;
+  addTrajectoryCommand(app, trajectoryAction);
 
   try {
     app.parse(argc, argv);
@@ -226,6 +280,7 @@ int main(int argc, char** argv) {
     if (*run) return cmdRun(ro);
     if (*check) return cmdCheck(checkScene);
     if (*comps) return cmdComponents(compName);
+    if (trajectoryAction) return trajectoryAction();
   } catch (const Error& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInvalidInput;

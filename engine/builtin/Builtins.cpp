@@ -12,6 +12,9 @@ void registerVTKExporter(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
 void registerStaticSolver(Registry&);
+void registerDrivers(Registry&);
+void registerCollision(Registry&);
+void registerConstraintContact(Registry&);
 
 void registerBuiltins(Registry& r) {
   registerMechanicalObject(r);
@@ -23,6 +26,9 @@ void registerBuiltins(Registry& r) {
   registerLinearSolvers(r);
   registerEulerImplicit(r);
   registerStaticSolver(r);
+  registerDrivers(r);
+  registerCollision(r);
+  registerConstraintContact(r);
 
   const char* drawing = "drawing only";
   for (const char* t : {"VisualStyle", "OglModel", "VisualModel", "OglSceneFrame", "LightManager", "DirectionalLight",
@@ -31,7 +37,6 @@ void registerBuiltins(Registry& r) {
     r.addIgnored(t, drawing);
   r.addIgnored("RequiredPlugin", "plugins are built in");
   r.addIgnored("DefaultAnimationLoop", "the step loop is built in");
-  r.addIgnored("DefaultPipeline", "no collision pipeline in this scene");
   r.addIgnored("TetrahedronSetTopologyModifier", "topology changes are not needed");
   r.addIgnored("TetrahedronSetGeometryAlgorithms", "geometry helpers are built in");
   r.addIgnored("TriangleSetTopologyModifier", "topology changes are not needed");

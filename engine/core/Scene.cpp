@@ -7,7 +7,11 @@ namespace viscera {
 
 namespace {
 
-bool isTemplateOk(const std::string& t) { return t == "Vec3d" || t == "Vec3" || t == "Vec3f"; }
+// Components without their own `template` attribute take the template of the state they act on;
+// they check at init that it is one they support.
+bool isTemplateOk(const std::string& t) {
+  return t == "Vec3d" || t == "Vec3" || t == "Vec3f" || t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f";
+}
 
 // Parses the element's attributes against `spec` into validated values.
 Attributes parseAttributes(const ElementDesc& el, const ComponentSpec& spec, const UnitSystem& units,
@@ -27,7 +31,7 @@ Attributes parseAttributes(const ElementDesc& el, const ComponentSpec& spec, con
       if (given.name == "name") continue;
       if (given.name == "template" && !spec.find("template")) {
         if (!isTemplateOk(given.value))
-          throw Error(given.loc, el.tag + ".template: '" + given.value + "' is not supported here (only Vec3d)");
+          throw Error(given.loc, el.tag + ".template: '" + given.value + "' is not supported here (Vec3d or Rigid3d)");
         continue;
       }
       if (isCosmeticAttribute(given.name)) {

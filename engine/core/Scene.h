@@ -36,6 +36,8 @@ class Scene {
   std::string outputPath(const std::string& p) const;
   // Notes about accepted but ignored elements and attributes.
   const std::vector<std::string>& notes() const { return notes_; }
+  // Adds a note (components explain at init what they ignore or assume).
+  void addNote(const std::string& n) { notes_.push_back(n); }
 
   // Resolves "@path" (or "path") from `from`'s node: "name", "../name", "/a/b/name", "child/name".
   // A bare name is looked up in the node, then in its ancestors. Throws with `loc` if missing.

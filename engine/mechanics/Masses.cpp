@@ -6,6 +6,7 @@
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 
 namespace viscera {
 
@@ -70,6 +71,18 @@ class UniformMass : public LumpedMass {
   }
 };
 
+// UniformMass in the node of a rigid body: the instrument's mass. The body is driven, so the mass
+// is recorded (and reported) but does not enter any equation.
+class RigidMass : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    RigidObject& body = contextRigid(*this, "mstate");
+    if (!attrs_.isSet("totalMass") && !attrs_.isSet("vertexMass")) throw error("set totalMass or vertexMass");
+    body.mass = attrs_.isSet("totalMass") ? attrs_.real("totalMass") : attrs_.real("vertexMass");
+  }
+};
+
 // DiagonalMass and lumped MeshMatrixMass give the same nodal masses on tetrahedra.
 class TetLumpedMass : public LumpedMass {
  public:
@@ -101,11 +114,15 @@ void registerMasses(Registry& r) {
     ComponentSpec s;
     s.name = "UniformMass";
     s.category = "mass";
-    s.doc = "The same mass for every node: totalMass / #nodes, or vertexMass. Applies gravity.";
+    s.doc = "The same mass for every node: totalMass / #nodes, or vertexMass. Applies gravity. In the node of a "
+            "Rigid3d body it is the body's mass (recorded; driven bodies do not integrate it).";
     s.add(AttrSpec::real("totalMass").above(0).unit(Dimension::mass()).help("mass of the whole body (wins over vertexMass)"));
     s.add(AttrSpec::real("vertexMass").above(0).unit(Dimension::mass()).help("mass of each node"));
     s.add(massLink());
-    s.factory = [](BuildContext& c) { return std::make_unique<UniformMass>(c); };
+    s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      if (c.node().find<RigidObject>() && !c.node().find<MechanicalObject>()) return std::make_unique<RigidMass>(c);
+      return std::make_unique<UniformMass>(c);
+    };
     r.add(std::move(s));
   }
   for (const char* name : {"DiagonalMass", "MeshMatrixMass"}) {

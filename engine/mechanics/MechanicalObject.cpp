@@ -5,12 +5,15 @@
 
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
+#include "engine/rigid/RigidObject.h"
 
 namespace viscera {
 
 namespace {
 
-Eigen::Matrix3Xd toPoints(const std::vector<double>& v) {
+Eigen::Matrix3Xd toPoints(const Component& c, const std::string& attr, const std::vector<double>& v) {
+  if (v.size() % 3 != 0)
+    throw c.error(attr, "expects x y z triples, got " + std::to_string(v.size()) + " numbers");
   Eigen::Matrix3Xd p(3, v.size() / 3);
   for (size_t i = 0; i < v.size(); ++i) p(i % 3, i / 3) = v[i];
   return p;
@@ -20,7 +23,7 @@ Eigen::Matrix3Xd toPoints(const std::vector<double>& v) {
 
 void MechanicalObject::init() {
   if (attrs_.isSet("position")) {
-    x = toPoints(linkedReals("position"));
+    x = toPoints(*this, "position", linkedReals("position"));
   } else {
     // As SOFA: positions come from the first topology in the context that carries points.
     for (const Node* n = &node(); n && x.cols() == 0; n = n->parent())
@@ -38,7 +41,7 @@ void MechanicalObject::init() {
   applyPlacement(attrs_, x);
   x0 = x;
   if (attrs_.isSet("rest_position")) {
-    x0 = toPoints(linkedReals("rest_position"));
+    x0 = toPoints(*this, "rest_position", linkedReals("rest_position"));
     if (x0.cols() != x.cols())
       throw error("rest_position", "has " + std::to_string(x0.cols()) + " points, position has " + std::to_string(x.cols()));
   }
@@ -48,7 +51,7 @@ void MechanicalObject::init() {
     if (vv.size() == 3) {
       for (int i = 0; i < v.cols(); ++i) v.col(i) = Eigen::Vector3d(vv[0], vv[1], vv[2]);
     } else if (static_cast<int>(vv.size()) == 3 * x.cols()) {
-      v = toPoints(vv);
+      v = toPoints(*this, "velocity", vv);
     } else {
       throw error("velocity", "expected one velocity or one per node (" + std::to_string(x.cols()) + "), got " +
                                   std::to_string(vv.size() / 3));
@@ -117,16 +120,20 @@ void registerMechanicalObject(Registry& r) {
   ComponentSpec s;
   s.name = "MechanicalObject";
   s.category = "state";
-  s.doc = "Degrees of freedom of a body (Vec3d): positions, velocities, rest positions. Positions default to "
-          "those of the topology (loader or grid) in the same node.";
-  s.add(AttrSpec::choice("template", {"Vec3d", "Vec3", "Vec3f"}).def("Vec3d").help("state type; Vec3f is computed in double precision"));
-  s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("initial positions x y z ... (or a link)"));
-  s.add(AttrSpec::reals("rest_position").multipleOf(3).unit(Dimension::length()).linked().help("rest positions (default: initial positions)"));
-  s.add(AttrSpec::reals("velocity").multipleOf(3).unit(Dimension::velocity()).linked().help("initial velocity: one for all nodes or one per node"));
+  s.doc = "Degrees of freedom of a body. Vec3d: the nodes of a deformable body (positions, velocities, rest "
+          "positions; positions default to those of the topology in the same node). Rigid3d: one rigid frame "
+          "(x y z qx qy qz qw), the instrument, moved by a driver (TrajectoryDriver, LinearMovementConstraint).";
+  s.add(AttrSpec::choice("template", {"Vec3d", "Vec3", "Vec3f", "Rigid3d", "Rigid3", "Rigid3f"}).def("Vec3d").help("state type; the f variants are computed in double precision"));
+  s.add(AttrSpec::reals("position").unit(Dimension::length()).linked().help("initial positions x y z ... (Rigid3d: x y z qx qy qz qw), or a link"));
+  s.add(AttrSpec::reals("rest_position").unit(Dimension::length()).linked().help("rest positions (default: initial positions; Vec3d only)"));
+  s.add(AttrSpec::reals("velocity").unit(Dimension::velocity()).linked().help("initial velocity: one for all nodes or one per node (Rigid3d: vx vy vz wx wy wz)"));
   s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the initial positions"));
   s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
   s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors applied first"));
-  s.factory = [](BuildContext& ctx) { return std::make_unique<MechanicalObject>(ctx); };
+  s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
+    if (isRigidTemplate(ctx.attrs().str("template"))) return std::make_unique<RigidObject>(ctx);
+    return std::make_unique<MechanicalObject>(ctx);
+  };
   r.add(std::move(s));
 }
 

@@ -8,6 +8,7 @@
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 #include "solvers/linear/LinearSolver.h"
 #include "solvers/ode/OdeCommon.h"
 
@@ -22,11 +23,13 @@ class EulerImplicitSolver : public Component, public OdeSolver {
     rM_ = attrs_.real("rayleighMass");
     rK_ = attrs_.real("rayleighStiffness");
     vdamping_ = attrs_.real("vdamping");
+    if ((idle_ = idleInRigidNode(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     linear_ = findLinearSolver(*this);
   }
 
   std::optional<Diverged> step(double t, double h, int stepIndex) override {
+    if (idle_) return std::nullopt;
     MechanicalObject& s = sys_->state();
     const int n = s.size();
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
@@ -88,9 +91,15 @@ class EulerImplicitSolver : public Component, public OdeSolver {
     return std::nullopt;
   }
   int lastLinearIterations() const override { return lastIterations_; }
+  // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F.
+  std::optional<StepResponse> stepResponse(double h) const override {
+    if (idle_) return std::nullopt;
+    return StepResponse{1.0 + h * rM_, -h * (h + rK_), h * h, h};
+  }
 
  private:
   double rM_ = 0, rK_ = 0, vdamping_ = 0;
+  bool idle_ = false;
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
   BlockSparseMatrix K_;
@@ -105,6 +114,13 @@ LinearSolver* findLinearSolver(Component& c) {
   if (!l) throw c.error("needs a linear solver in its node (CGLinearSolver or SparseLDLSolver)");
   c.scene().initComponent(dynamic_cast<Component&>(*l));
   return l;
+}
+
+bool idleInRigidNode(Component& c) {
+  if (c.node().find<MechanicalObject>() || !c.node().find<RigidObject>()) return false;
+  c.scene().addNote(c.loc().str() + ": note: " + c.typeName() + " '" + c.name() + "' is in the node of rigid body '" +
+                    c.node().find<RigidObject>()->name() + "', which is driven, not integrated: the solver stays idle");
+  return true;
 }
 
 void registerEulerImplicit(Registry& r) {

@@ -40,6 +40,7 @@ class StaticSolver : public Component, public OdeSolver {
     relRes_ = attrs_.real("relative_residual_tolerance_threshold");
     absCorr_ = attrs_.real("absolute_correction_tolerance_threshold");
     exact_ = attrs_.boolean("exactTangent");
+    if ((idle_ = idleInRigidNode(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     if (exact_) {
       for (ForceField* f : sys_->forceFields())
@@ -50,6 +51,7 @@ class StaticSolver : public Component, public OdeSolver {
   }
 
   std::optional<Diverged> step(double t, double, int stepIndex) override {
+    if (idle_) return std::nullopt;
     MechanicalObject& s = sys_->state();
     const int n = s.size();
     const Eigen::Matrix3Xd xStart = s.x;
@@ -110,12 +112,17 @@ class StaticSolver : public Component, public OdeSolver {
     }
     return std::nullopt;
   }
+  // Equilibrium -K dx = F: positions move by (-K)^-1 F.
+  std::optional<StepResponse> stepResponse(double) const override {
+    if (idle_) return std::nullopt;
+    return StepResponse{0.0, -1.0, 1.0, 0.0};
+  }
   int lastLinearIterations() const override { return iterationsDone_; }
 
  private:
   int iterations_ = 10;
   double absRes_ = 1e-10, relRes_ = 1e-10, absCorr_ = 1e-12;
-  bool exact_ = true;
+  bool exact_ = true, idle_ = false;
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
   BlockSparseMatrix K_;

@@ -1,0 +1,383 @@
+#include "engine/collision/Collision.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <cstdlib>
+
+#include "engine/collision/Geometry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
+#include "solvers/linear/BlockSparseMatrix.h"
+
+namespace viscera {
+
+// ---------------------------------------------------------------------------------------------
+// SphereCollisionModel
+
+void SphereCollisionModel::init() {
+  if (node().find<MechanicalObject>() && !node().find<RigidObject>())
+    throw error("is on a Vec3d object; Viscera's spheres sit on a rigid body (MechanicalObject template=\"Rigid3d\")");
+  body_ = &contextRigid(*this, "mstate");
+  const auto& r = attrs_.reals("radius");
+  if (r.size() != 1) throw error("radius", "one radius per sphere, and a rigid body carries one sphere");
+  radius_ = r[0];
+  if (!(radius_ > 0)) throw error("radius", "must be positive");
+}
+
+Eigen::Vector3d SphereCollisionModel::centre() const { return body_->p; }
+
+// ---------------------------------------------------------------------------------------------
+// SurfaceCollisionModel
+
+struct SurfaceCollisionModel::Bvh {
+  geom::AabbTree tree;
+  std::vector<geom::AabbTree::Box> boxes;
+};
+
+void SurfaceCollisionModel::init() {
+  const std::string& t = typeName();
+  kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
+  state_ = &contextState(*this);
+  stiffness_ = attrs_.isSet("contactStiffness") ? attrs_.real("contactStiffness") : 0.0;
+  Topology& topo = contextTopology(*this, "topology", false);
+  const TetList& T = topo.tetrahedra();
+  const Eigen::Matrix3Xd& X = state_->x0;
+  // Boundary faces: those that belong to one tetrahedron, oriented away from its fourth node.
+  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
+  static const int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  for (int e = 0; e < T.cols(); ++e) {
+    for (int f = 0; f < 4; ++f) {
+      std::array<int, 3> tri = {T(kFace[f][0], e), T(kFace[f][1], e), T(kFace[f][2], e)};
+      for (int k : tri)
+        if (k < 0 || k >= X.cols())
+          throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(k) +
+                      " but the MechanicalObject has " + std::to_string(X.cols()) + " nodes");
+      const int opp = T(f, e);
+      const Eigen::Vector3d nrm = (X.col(tri[1]) - X.col(tri[0])).cross(X.col(tri[2]) - X.col(tri[0]));
+      if (nrm.dot(X.col(opp) - X.col(tri[0])) > 0) std::swap(tri[1], tri[2]);
+      std::array<int, 3> key = tri;
+      std::sort(key.begin(), key.end());
+      auto [it, fresh] = faces.try_emplace(key, 1, tri);
+      if (!fresh) ++it->second.first;
+    }
+  }
+  for (const auto& [key, v] : faces)
+    if (v.first == 1) tris_.push_back(v.second);
+  if (tris_.empty()) throw error("the topology has no boundary triangles");
+  std::map<std::pair<int, int>, int> edgeId;
+  triEdges_.resize(tris_.size());
+  vertexNeighbours_.assign(X.cols(), {});
+  for (size_t t = 0; t < tris_.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      int a = tris_[t][k], b = tris_[t][(k + 1) % 3];
+      auto key = std::minmax(a, b);
+      auto [it, fresh] = edgeId.try_emplace({key.first, key.second}, static_cast<int>(edges_.size()));
+      if (fresh) {
+        edges_.push_back({key.first, key.second});
+        edgeTris_.emplace_back();
+        vertexNeighbours_[a].push_back(b);
+        vertexNeighbours_[b].push_back(a);
+      }
+      edgeTris_[it->second].push_back(static_cast<int>(t));
+      triEdges_[t][k] = it->second;
+    }
+  }
+  for (int i = 0; i < X.cols(); ++i)
+    if (!vertexNeighbours_[i].empty()) verts_.push_back(i);
+  bvh_ = std::make_shared<Bvh>();
+  const size_t n = kind_ == Kind::Points ? verts_.size() : tris_.size();
+  bvh_->boxes.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    geom::AabbTree::Box b;
+    if (kind_ == Kind::Points) b.extend(X.col(verts_[i]));
+    else for (int k : tris_[i]) b.extend(X.col(k));
+    bvh_->boxes[i] = b;
+  }
+  bvh_->tree.build(bvh_->boxes);
+}
+
+void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
+                                   std::vector<Contact>& out) {
+  const Eigen::Vector3d c = sphere.centre();
+  const double R = sphere.radius();
+  const double reach = R + s.alarmDistance;
+  // Broad phase: refit the hierarchy to the current positions, then visit only what the
+  // sphere's inflated box touches.
+  const size_t n = bvh_->boxes.size();
+  for (size_t i = 0; i < n; ++i) {
+    geom::AabbTree::Box b;
+    if (kind_ == Kind::Points) b.extend(x.col(verts_[i]));
+    else for (int k : tris_[i]) b.extend(x.col(k));
+    bvh_->boxes[i] = b;
+  }
+  bvh_->tree.refit(bvh_->boxes);
+  const geom::AabbTree::Box query(c - Eigen::Vector3d::Constant(reach), c + Eigen::Vector3d::Constant(reach));
+
+  auto make = [&](Feature f, std::initializer_list<std::pair<int, double>> nw, const Eigen::Vector3d& q,
+                  const Eigen::Vector3d& nrm, double dist) {
+    Contact ct;
+    ct.sphere = &sphere;
+    ct.surface = this;
+    ct.feature = f;
+    for (auto [node, w] : nw) {
+      ct.nodes[ct.count] = node;
+      ct.w[ct.count] = w;
+      ++ct.count;
+    }
+    ct.n = nrm;
+    ct.p0 = q;
+    ct.gap0 = dist - R - s.contactDistance;
+    out.push_back(ct);
+  };
+
+  if (kind_ == Kind::Points) {
+    bvh_->tree.query(query, [&](int i) {
+      const int v = verts_[i];
+      const Eigen::Vector3d d = c - x.col(v);
+      const double dist = d.norm();
+      if (dist - R >= s.alarmDistance || dist < 1e-12 * reach) return;
+      make(Feature::Vertex, {{v, 1.0}}, x.col(v), d / dist, dist);
+    });
+    return;
+  }
+
+  std::set<std::pair<int, int>> seen;  // (feature kind, id): a feature is reported once
+  bvh_->tree.query(query, [&](int t) {
+    const auto& tri = tris_[t];
+    const Eigen::Vector3d a = x.col(tri[0]), b = x.col(tri[1]), cc = x.col(tri[2]);
+    geom::TriangleClosest cl = geom::closestOnTriangle(c, a, b, cc);
+    const Eigen::Vector3d d = c - cl.point;
+    if (d.norm() - R >= s.alarmDistance && cl.region != 0) return;
+    if (cl.region == 0) {
+      if (kind_ == Kind::Lines) return;
+      const Eigen::Vector3d nf = (b - a).cross(cc - a).normalized();
+      const double dist = d.dot(nf);  // signed: negative once the centre is under the face
+      if (dist - R >= s.alarmDistance || dist < -R) return;
+      if (!seen.insert({0, t}).second) return;
+      make(Feature::Face, {{tri[0], cl.w[0]}, {tri[1], cl.w[1]}, {tri[2], cl.w[2]}}, cl.point, nf, dist);
+      return;
+    }
+    // Edge or vertex: keep it only if the centre lies in the feature's outer Voronoi region,
+    // i.e. the closest point is a local minimum over the neighbouring faces too.
+    const double dn = d.norm();
+    if (cl.region <= 3) {
+      const int k = cl.region - 1;  // edge (tri[k], tri[k+1])
+      const int eid = triEdges_[t][k];
+      if (!seen.insert({1, eid}).second) return;
+      const int ia = tri[k], ib = tri[(k + 1) % 3];
+      const Eigen::Vector3d dir = (x.col(ib) - x.col(ia)).normalized();
+      Eigen::Vector3d nsum = Eigen::Vector3d::Zero();
+      for (int adj : edgeTris_[eid]) {
+        const auto& at = tris_[adj];
+        int o = at[0] + at[1] + at[2] - ia - ib;
+        Eigen::Vector3d tv = x.col(o) - cl.point;
+        tv -= tv.dot(dir) * dir;
+        if (d.dot(tv) > 1e-9 * dn * tv.norm()) return;
+        nsum += (x.col(at[1]) - x.col(at[0])).cross(x.col(at[2]) - x.col(at[0])).normalized();
+      }
+      const double wa = cl.w[k], wb = cl.w[(k + 1) % 3];
+      Eigen::Vector3d nrm = dn > 1e-12 * reach ? Eigen::Vector3d(d / dn) : nsum.normalized();
+      double dist = dn;
+      if (nrm.dot(nsum) < 0) {  // centre inside the body past this edge
+        nrm = -nrm;
+        dist = -dist;
+      }
+      make(Feature::Edge, {{ia, wa}, {ib, wb}}, cl.point, nrm, dist);
+      return;
+    }
+    const int vtx = tri[cl.region - 4];
+    if (!seen.insert({2, vtx}).second) return;
+    for (int u : vertexNeighbours_[vtx]) {
+      const Eigen::Vector3d e = x.col(u) - x.col(vtx);
+      if (d.dot(e) > 1e-9 * dn * e.norm()) return;
+    }
+    Eigen::Vector3d nrm = d / std::max(dn, 1e-300);
+    make(Feature::Vertex, {{vtx, 1.0}}, cl.point, nrm, dn);
+  });
+}
+
+void SurfaceCollisionModel::setContacts(std::vector<Contact> c, const ContactSettings& s) {
+  contacts_ = std::move(c);
+  penalty_ = s.response == ContactSettings::Response::Penalty;
+  k_ = stiffness_;
+}
+
+void SurfaceCollisionModel::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
+  if (!penalty_) return;
+  for (Contact& c : contacts_) {
+    const double g = c.gap(x);
+    c.active = g < 0;
+    if (!c.active) continue;
+    const Eigen::Vector3d fc = k_ * g * c.n;
+    for (int k = 0; k < c.count; ++k) f.col(c.nodes[k]) += c.w[k] * fc;
+  }
+}
+
+void SurfaceCollisionModel::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {
+  if (!penalty_) return;
+  for (const Contact& c : contacts_) {
+    if (!c.active) continue;
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int k = 0; k < c.count; ++k) d += c.w[k] * dx.col(c.nodes[k]);
+    const Eigen::Vector3d fc = -kFactor * k_ * c.n.dot(d) * c.n;
+    for (int k = 0; k < c.count; ++k) df.col(c.nodes[k]) += c.w[k] * fc;
+  }
+}
+
+void SurfaceCollisionModel::stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {
+  // Contacts couple at most the nodes of one boundary triangle; those pairs are fixed.
+  for (const auto& e : edges_) pairs.emplace_back(e[0], e[1]);
+}
+
+void SurfaceCollisionModel::addStiffness(BlockSparseMatrix& K, double kFactor) const {
+  if (!penalty_) return;
+  for (const Contact& c : contacts_) {
+    if (!c.active) continue;
+    const Eigen::Matrix3d nn = -kFactor * k_ * c.n * c.n.transpose();
+    for (int a = 0; a < c.count; ++a)
+      for (int b = 0; b < c.count; ++b) K.block(K.slot(c.nodes[a], c.nodes[b])) += c.w[a] * c.w[b] * nn;
+  }
+}
+
+void SurfaceCollisionModel::finishPenalty(const Eigen::Matrix3Xd& x) {
+  for (Contact& c : contacts_) c.force = c.active ? Eigen::Vector3d(k_ * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Intersection and response settings
+
+void ProximityIntersection::init() {
+  alarmDistance = attrs_.real("alarmDistance");
+  contactDistance = attrs_.real("contactDistance");
+  if (contactDistance > alarmDistance)
+    throw error("contactDistance", "must not exceed alarmDistance (" + attrs_.get("alarmDistance").text + ")");
+}
+
+void CollisionResponse::init() {
+  const std::string& r = attrs_.str("response");
+  response = r == "FrictionContactConstraint" || r == "FrictionContact" || r == "UnilateralContactConstraint"
+                 ? ContactSettings::Response::Constraint
+                 : ContactSettings::Response::Penalty;
+  // responseParams: "mu=0.9" (SOFA separates several with '&').
+  const std::string& params = attrs_.str("responseParams");
+  size_t pos = 0;
+  while (pos < params.size()) {
+    size_t amp = params.find('&', pos);
+    std::string kv = params.substr(pos, amp == std::string::npos ? std::string::npos : amp - pos);
+    pos = amp == std::string::npos ? params.size() : amp + 1;
+    if (kv.empty()) continue;
+    size_t eq = kv.find('=');
+    std::string key = kv.substr(0, eq), val = eq == std::string::npos ? "" : kv.substr(eq + 1);
+    if (key == "mu") {
+      char* end = nullptr;
+      mu = std::strtod(val.c_str(), &end);
+      if (val.empty() || *end != '\0' || !(mu >= 0) || !std::isfinite(mu))
+        throw error("responseParams", "mu must be a number >= 0, got '" + val + "'");
+    } else if (key == "tol" || key == "tolerance") {
+      // accepted: the constraint solver's tolerance applies
+    } else {
+      throw error("responseParams", "unknown parameter '" + key + "' (known: mu)");
+    }
+  }
+  if (attrs_.isSet("mu")) mu = attrs_.real("mu");
+  if (response == ContactSettings::Response::Penalty && mu > 0)
+    throw error("responseParams", "friction (mu) needs the constraint response: response=\"FrictionContactConstraint\"");
+}
+
+// ---------------------------------------------------------------------------------------------
+// CollisionPipeline
+
+void CollisionPipeline::init() {
+  if (scene().all<CollisionPipeline>().size() > 1)
+    throw error("a scene has one collision pipeline; this is the second");
+  // Intersection method and response: the components of those kinds in the pipeline's node.
+  if (auto* ix = node().find<ProximityIntersection>()) {
+    scene().initComponent(*ix);
+    settings_.alarmDistance = ix->alarmDistance;
+    settings_.contactDistance = ix->contactDistance;
+  } else {
+    scene().addNote(loc().str() + ": note: no MinProximityIntersection/LocalMinDistance beside the pipeline: alarmDistance " +
+                    std::to_string(settings_.alarmDistance) + ", contactDistance " + std::to_string(settings_.contactDistance));
+  }
+  if (auto* r = node().find<CollisionResponse>()) {
+    scene().initComponent(*r);
+    settings_.response = r->response;
+    settings_.mu = r->mu;
+  }
+  for (SphereCollisionModel* s : scene().all<SphereCollisionModel>()) {
+    scene().initComponent(*s);
+    spheres_.push_back(s);
+  }
+  std::map<const MechanicalObject*, SurfaceCollisionModel*> best;
+  for (SurfaceCollisionModel* s : scene().all<SurfaceCollisionModel>()) {
+    scene().initComponent(*s);
+    surfaces_.push_back(s);
+    auto [it, fresh] = best.try_emplace(&s->mstate(), s);
+    if (!fresh && s->kind() > it->second->kind()) it->second = s;
+  }
+  for (SurfaceCollisionModel* s : surfaces_) {
+    SurfaceCollisionModel* b = best[&s->mstate()];
+    s->setActive(s == b);
+    if (s != b)
+      scene().addNote(s->loc().str() + ": note: " + s->typeName() + " '" + s->name() + "' is covered by " + b->typeName() +
+                      " '" + b->name() + "' on the same body (its edges and vertices are contact features too)");
+  }
+  if (settings_.response == ContactSettings::Response::Penalty) {
+    for (SurfaceCollisionModel* s : surfaces_)
+      if (s->active() && !(s->contactStiffness() > 0))
+        throw s->error("contactStiffness",
+                       "penalty contact needs a contact stiffness (force per length per contact, e.g. contactStiffness=\"200 N/m\"), "
+                       "or use the constraint response (CollisionResponse response=\"FrictionContactConstraint\")");
+  } else if (scene().all<ConstraintSolver>().empty()) {
+    throw error("the constraint contact response needs FreeMotionAnimationLoop and GenericConstraintSolver in the root node");
+  }
+  if (spheres_.empty() || surfaces_.empty())
+    scene().addNote(loc().str() + ": note: CollisionPipeline has " + std::to_string(spheres_.size()) + " sphere and " +
+                    std::to_string(surfaces_.size()) + " surface collision models: no contact can occur");
+}
+
+void CollisionPipeline::detect() {
+  for (SurfaceCollisionModel* s : surfaces_) {
+    if (!s->active()) continue;
+    std::vector<Contact> found;
+    for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->mstate().x, settings_, found);
+    s->setContacts(std::move(found), settings_);
+  }
+}
+
+void CollisionPipeline::finish() {
+  for (SphereCollisionModel* sp : spheres_) {
+    sp->body().force.setZero();
+    sp->body().torque.setZero();
+    sp->body().contacts = 0;
+  }
+  int total = 0;
+  for (SurfaceCollisionModel* s : surfaces_) {
+    if (!s->active()) continue;
+    if (settings_.response == ContactSettings::Response::Penalty) s->finishPenalty(s->mstate().x);
+    for (const Contact& c : s->contacts()) {
+      if (c.force.squaredNorm() == 0) continue;
+      RigidObject& b = c.sphere->body();
+      const Eigen::Vector3d onBody = -c.force;
+      const Eigen::Vector3d at = c.sphere->centre() - c.sphere->radius() * c.n;  // contact point on the sphere
+      b.force += onBody;
+      b.torque += (at - b.p).cross(onBody);
+      ++b.contacts;
+      ++total;
+    }
+  }
+  maxContacts_ = std::max(maxContacts_, total);
+}
+
+int CollisionPipeline::contactCount() const {
+  int n = 0;
+  for (const SurfaceCollisionModel* s : surfaces_)
+    if (s->active())
+      for (const Contact& c : s->contacts()) n += c.force.squaredNorm() > 0;
+  return n;
+}
+
+}  // namespace viscera

@@ -1,0 +1,181 @@
+// Contact between rigid spheres (the instrument) and the boundary surface of deformable bodies.
+//
+// Per step: the instrument is moved to its end-of-step pose, then the pipeline finds, for each
+// sphere, the surface features (triangle interiors, edges, vertices) within the alarm distance
+// whose closest point is a local minimum of the distance (the sphere centre lies in the feature's
+// outer Voronoi region), so that a contact is never counted twice through neighbouring triangles.
+// Each contact carries barycentric weights on up to three nodes, a normal and the gap
+// g = distance - radius - contactDistance, kept >= 0 by the response:
+//  - penalty: f = k min(g, 0) n on the tissue, with stiffness -k w_i w_j n n^T in the implicit
+//    system (the surface model is a ForceField of the tissue);
+//  - constraint: non-penetration with Coulomb friction, solved after the free motion by the
+//    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "engine/Roles.h"
+#include "engine/core/Component.h"
+
+namespace viscera {
+
+class MechanicalObject;
+class RigidObject;
+class SphereCollisionModel;
+class SurfaceCollisionModel;
+
+enum class Feature { Face, Edge, Vertex };
+
+struct Contact {
+  SphereCollisionModel* sphere = nullptr;
+  SurfaceCollisionModel* surface = nullptr;
+  Feature feature = Feature::Face;
+  int count = 0;                    // nodes used: 3 (face), 2 (edge), 1 (vertex)
+  std::array<int, 3> nodes{};       // tissue nodes
+  std::array<double, 3> w{};        // barycentric weights (sum 1)
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();   // unit normal, from the tissue towards the sphere centre
+  Eigen::Vector3d p0 = Eigen::Vector3d::Zero();  // tissue point at detection
+  double gap0 = 0;                  // gap at detection (tissue at the step start, sphere at the step end)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // on the tissue over the step (end-of-step value)
+  bool active = false;              // the response applied a force
+
+  // The tissue point sum w_i x_i for positions x.
+  Eigen::Vector3d point(const Eigen::Matrix3Xd& x) const {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int k = 0; k < count; ++k) p += w[k] * x.col(nodes[k]);
+    return p;
+  }
+  // The gap linearised about detection: g0 - n . (p(x) - p0).
+  double gap(const Eigen::Matrix3Xd& x) const { return gap0 - n.dot(point(x) - p0); }
+};
+
+// How contacts respond; set by the CollisionResponse and intersection components.
+struct ContactSettings {
+  enum class Response { Penalty, Constraint } response = Response::Penalty;
+  double alarmDistance = 1.0;
+  double contactDistance = 0.5;
+  double mu = 0.0;         // Coulomb friction (constraint response)
+  double stiffness = 0.0;  // penalty stiffness per contact (force / length)
+};
+
+// A sphere on a rigid body's frame origin: SOFA's SphereCollisionModel on a Rigid3d object.
+class SphereCollisionModel : public Component {
+ public:
+  using Component::Component;
+  void init() override;
+  RigidObject& body() const { return *body_; }
+  double radius() const { return radius_; }
+  Eigen::Vector3d centre() const;
+
+ private:
+  RigidObject* body_ = nullptr;
+  double radius_ = 1.0;
+};
+
+// The boundary surface of the tetrahedra of a deformable body (SOFA's TriangleCollisionModel;
+// LineCollisionModel and PointCollisionModel use the same surface with fewer features).
+class SurfaceCollisionModel : public Component, public ForceField {
+ public:
+  enum class Kind { Points, Lines, Triangles };
+  using Component::Component;
+  void init() override;
+
+  Kind kind() const { return kind_; }
+  MechanicalObject& mstate() const override { return *state_; }
+  const std::vector<std::array<int, 3>>& triangles() const { return tris_; }  // outward (right-hand rule)
+  const std::vector<int>& vertices() const { return verts_; }
+  // Per-model penalty stiffness (`contactStiffness`), 0 if not given.
+  double contactStiffness() const { return stiffness_; }
+  // Inactive when another model on the same body with more features covers it.
+  bool active() const { return active_; }
+  void setActive(bool a) { active_ = a; }
+
+  // Contacts with `sphere` for the positions x (the tissue at the step start).
+  void detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
+              std::vector<Contact>& out);
+  // The contacts of the current step, with the response they get.
+  void setContacts(std::vector<Contact> c, const ContactSettings& s);
+  std::vector<Contact>& contacts() { return contacts_; }
+  const std::vector<Contact>& contacts() const { return contacts_; }
+
+  // ForceField: penalty forces and their stiffness (nothing for the constraint response).
+  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override;
+  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
+  void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
+  void addStiffness(BlockSparseMatrix& K, double kFactor) const override;
+  // Sets each contact's force from the end-of-step positions (penalty response).
+  void finishPenalty(const Eigen::Matrix3Xd& x);
+
+ private:
+  struct Bvh;
+  MechanicalObject* state_ = nullptr;
+  Kind kind_ = Kind::Triangles;
+  bool active_ = true;
+  double stiffness_ = 0;
+  std::vector<std::array<int, 3>> tris_;
+  std::vector<int> verts_;
+  std::vector<std::array<int, 2>> edges_;          // surface edges (a < b)
+  std::vector<std::array<int, 3>> triEdges_;       // per triangle: edge ids of (v0v1, v1v2, v2v0)
+  std::vector<std::vector<int>> edgeTris_;         // per edge: adjacent triangles
+  std::vector<std::vector<int>> vertexNeighbours_; // per node: surface neighbours (empty off the surface)
+  std::shared_ptr<Bvh> bvh_;
+  std::vector<Contact> contacts_;
+  bool penalty_ = false;
+  double k_ = 0;
+};
+
+// SOFA's MinProximityIntersection / LocalMinDistance: the alarm and contact distances.
+class ProximityIntersection : public Component {
+ public:
+  using Component::Component;
+  void init() override;
+  double alarmDistance = 1.0, contactDistance = 0.5;
+};
+
+// SOFA's CollisionResponse (DefaultContactManager): the response and its parameters.
+class CollisionResponse : public Component {
+ public:
+  using Component::Component;
+  void init() override;
+  ContactSettings::Response response = ContactSettings::Response::Penalty;
+  double mu = 0.0;
+};
+
+// One step's collision handling for the whole scene: SOFA's CollisionPipeline (DefaultPipeline)
+// with its broad phase, narrow phase, intersection method and response.
+class CollisionPipeline : public Component {
+ public:
+  using Component::Component;
+  void init() override;
+  const ContactSettings& settings() const { return settings_; }
+  // Finds this step's contacts (instrument at the step end, tissue at the step start).
+  void detect();
+  // After the solve: contact forces, the wrench on each instrument, statistics.
+  void finish();
+  const std::vector<SurfaceCollisionModel*>& surfaces() const { return surfaces_; }
+  const std::vector<SphereCollisionModel*>& spheres() const { return spheres_; }
+  int contactCount() const;
+  int maxContacts() const { return maxContacts_; }
+
+ private:
+  ContactSettings settings_;
+  std::vector<SphereCollisionModel*> spheres_;
+  std::vector<SurfaceCollisionModel*> surfaces_;
+  int maxContacts_ = 0;
+};
+
+// Applies the contact constraints after the free motion (FreeMotionAnimationLoop): the role of
+// GenericConstraintSolver / LCPConstraintSolver.
+class ConstraintSolver {
+ public:
+  virtual ~ConstraintSolver() = default;
+  // Corrects the states of the bodies in contact; a failure stops the run like a divergence.
+  virtual std::optional<Diverged> solve(CollisionPipeline& pipeline, double dt, int stepIndex, double time) = 0;
+  virtual int lastIterations() const = 0;
+  virtual double lastResidual() const = 0;
+};
+
+}  // namespace viscera

@@ -1,0 +1,113 @@
+// Declarations of the collision components (models, pipeline, intersection, response).
+#include "engine/collision/Collision.h"
+#include "engine/core/Registry.h"
+
+namespace viscera {
+
+namespace {
+
+void addSofaModelFlags(ComponentSpec& s) {
+  s.add(AttrSpec::ints("group").help("collision group (accepted for SOFA scenes; instruments and tissue always collide)"));
+  s.add(AttrSpec::boolean("moving").def("true").help("accepted for SOFA scenes; no effect"));
+  s.add(AttrSpec::boolean("simulated").def("true").help("accepted for SOFA scenes; no effect"));
+  s.add(AttrSpec::boolean("selfCollision").def("false").help("must be false: self-collision is not handled"));
+  s.add(AttrSpec::real("proximity").def("0").atLeast(0).unit(Dimension::length()).help("accepted for SOFA scenes; use the intersection's contactDistance"));
+}
+
+}  // namespace
+
+void registerCollision(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "SphereCollisionModel";
+    s.aliases = {"SphereModel", "Sphere"};
+    s.category = "collision";
+    s.doc = "A sphere at the origin of a rigid body's frame (the instrument tip).";
+    s.add(AttrSpec::reals("radius").def("1").unit(Dimension::length()).help("sphere radius (one value)"));
+    s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("accepted for SOFA scenes; the penalty stiffness is the tissue model's"));
+    s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
+    addSofaModelFlags(s);
+    s.factory = [](BuildContext& c) { return std::make_unique<SphereCollisionModel>(c); };
+    r.add(std::move(s));
+  }
+  const char* docs[3][2] = {
+      {"TriangleCollisionModel",
+       "The boundary surface of a body's tetrahedra as contact geometry: triangle interiors, edges and vertices, each "
+       "a contact only where it is the local closest feature to a sphere. Carries the penalty stiffness."},
+      {"LineCollisionModel", "The edges and vertices of the boundary surface (no triangle interiors); a "
+                             "TriangleCollisionModel on the same body covers it."},
+      {"PointCollisionModel", "The vertices of the boundary surface; a Triangle- or LineCollisionModel on the same body "
+                              "covers it. Spheres can sink between vertices by the sagitta of the vertex spacing."}};
+  for (auto& d : docs) {
+    ComponentSpec s;
+    s.name = d[0];
+    std::string base = std::string(d[0]).substr(0, std::string(d[0]).size() - std::string("CollisionModel").size());
+    s.aliases = {base + "Model", base + "SetModel"};
+    s.category = "collision";
+    s.doc = d[1];
+    s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("penalty stiffness per contact (force per length); required by the penalty response"));
+    s.add(AttrSpec::link("topology").help("the tetrahedral topology (default: the one in the node)"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.add(AttrSpec::boolean("bothSide").def("false").help("accepted for SOFA scenes; the outer side is used"));
+    addSofaModelFlags(s);
+    s.factory = [](BuildContext& c) { return std::make_unique<SurfaceCollisionModel>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "CollisionPipeline";
+    s.aliases = {"DefaultPipeline"};
+    s.category = "collision";
+    s.doc = "Runs collision detection every step: the instrument is moved to its end-of-step pose, a bounding-volume "
+            "hierarchy over each surface (refitted every step) finds the triangles near each sphere, and the "
+            "closest features become contacts. One per scene, in the root node, beside the intersection method "
+            "and the response.";
+    s.add(AttrSpec::integer("depth").def("6").atLeast(0).help("accepted for SOFA scenes; the hierarchy depth is automatic"));
+    s.add(AttrSpec::boolean("verbose").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<CollisionPipeline>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "MinProximityIntersection";
+    s.aliases = {"LocalMinDistance", "NewProximityIntersection"};
+    s.category = "collision";
+    s.doc = "Contact distances: features closer than alarmDistance to a sphere become contacts, and the response "
+            "keeps them at least contactDistance away from it. Only local-minimum features are kept (as "
+            "LocalMinDistance), so a contact is never counted twice through neighbouring triangles.";
+    s.add(AttrSpec::real("alarmDistance").def("1").above(0).unit(Dimension::length()).help("detection distance"));
+    s.add(AttrSpec::real("contactDistance").def("0.5").atLeast(0).unit(Dimension::length()).help("distance kept between surfaces"));
+    s.add(AttrSpec::real("angleCone").def("0").help("accepted for SOFA scenes; the exact Voronoi test is used"));
+    s.add(AttrSpec::boolean("useSphereTriangle").def("true").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("usePointPoint").def("true").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("useLinePoint").def("true").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("useLineLine").def("true").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<ProximityIntersection>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "CollisionResponse";
+    s.aliases = {"DefaultContactManager", "RuleBasedContactManager"};
+    s.category = "collision";
+    s.doc = "How contacts respond. PenalityContactForceField: a spring k min(gap, 0) per contact whose stiffness "
+            "enters the implicit system (k is the tissue model's contactStiffness). FrictionContactConstraint: "
+            "non-penetration with Coulomb friction mu, solved after the free motion (needs FreeMotionAnimationLoop, "
+            "GenericConstraintSolver and a constraint correction in the tissue's node).";
+    s.add(AttrSpec::choice("response", {"PenalityContactForceField", "PenaltyContactForceField", "default",
+                                        "FrictionContactConstraint", "FrictionContact", "UnilateralContactConstraint"})
+              .def("PenalityContactForceField")
+              .help("the contact response"));
+    s.add(AttrSpec::string("responseParams").def("").help("SOFA's parameters, e.g. \"mu=0.9\""));
+    s.add(AttrSpec::real("mu").atLeast(0).help("Coulomb friction coefficient (overrides responseParams)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<CollisionResponse>(c); };
+    r.add(std::move(s));
+  }
+  r.addIgnored("BruteForceBroadPhase", "the pipeline's broad phase is a bounding-volume hierarchy");
+  r.addIgnored("BruteForceDetection", "the pipeline's broad phase is a bounding-volume hierarchy");
+  r.addIgnored("BVHNarrowPhase", "the pipeline's narrow phase is built in");
+  r.addIgnored("CollisionGroup", "all instruments collide with all tissue");
+  r.addIgnored("DefaultCollisionGroupManager", "all instruments collide with all tissue");
+}
+
+}  // namespace viscera

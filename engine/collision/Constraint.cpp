@@ -1,0 +1,334 @@
+// Constraint contact (SOFA's FreeMotionAnimationLoop + GenericConstraintSolver): after the free
+// motion, each contact gets a normal force (non-penetration) and a friction force inside the
+// Coulomb cone, found by projected Gauss-Seidel on the Delassus operator W = H C H^T, where C
+// maps forces on the tissue nodes to end-of-step displacements (the constraint correction).
+//
+// Rows of a contact (tissue point p = sum w_i x_i, n towards the sphere, t1 t2 tangents):
+//   gap   g = g_free - n . dp           (>= 0; normal force lambda_n >= 0 pushes the tissue along -n)
+//   slip  s = t . (p - p_start) - t . (sphere point displacement over the step)
+// with |lambda_t| <= mu lambda_n, lambda_t opposing the slip while sliding.
+#include <Eigen/Dense>
+#include <cmath>
+#include <unordered_map>
+
+#include "engine/MechanicalSystem.h"
+#include "engine/collision/Collision.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
+#include "solvers/linear/LinearSolver.h"
+
+namespace viscera {
+
+namespace {
+
+// The compliance of one deformable body over a step: C = xFactor A^-1 (or the uncoupled mass-only
+// approximation), with its block columns cached per node.
+class ConstraintCorrection : public Component {
+ public:
+  enum class Mode { Precomputed, LinearSolver, Uncoupled };
+  using Component::Component;
+
+  void init() override {
+    const std::string& t = typeName();
+    mode_ = t == "UncoupledConstraintCorrection" ? Mode::Uncoupled
+            : t == "LinearSolverConstraintCorrection" || t == "GenericConstraintCorrection" ? Mode::LinearSolver
+                                                                                            : Mode::Precomputed;
+    sys_ = std::make_unique<MechanicalSystem>(*this);
+    auto* ode = node().find<OdeSolver>();
+    if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver or StaticSolver) in its node");
+    scene().initComponent(dynamic_cast<Component&>(*ode));
+    auto r = ode->stepResponse(scene().dt());
+    if (!r) throw error("the ODE solver in its node has no linear system to correct");
+    resp_ = *r;
+    if (mode_ == Mode::Uncoupled && !(resp_.mFactor > 0))
+      throw error("the uncoupled (mass-only) compliance needs a dynamic solver (EulerImplicitSolver)");
+    if (mode_ == Mode::Precomputed) factorize(sys_->state().x0);
+  }
+
+  MechanicalObject& mstate() const { return sys_->state(); }
+
+  // Called once per step before the solve: refactors when the compliance follows the state.
+  void prepare() {
+    if (mode_ == Mode::LinearSolver) {
+      factorize(sys_->state().x);
+      columns_.clear();
+    }
+  }
+
+  // The 3x3 block C(u, v).
+  Eigen::Matrix3d block(int u, int v) {
+    if (mode_ == Mode::Uncoupled) return u == v ? uncoupled(u) : Eigen::Matrix3d::Zero();
+    const Eigen::MatrixX3d& col = column(v);
+    return col.middleRows<3>(3 * u);
+  }
+
+  // dx = C F for forces F on the nodes.
+  void apply(const Eigen::Matrix3Xd& F, Eigen::Matrix3Xd& dx) {
+    const int n = F.cols();
+    dx.setZero(3, n);
+    if (mode_ == Mode::Uncoupled) {
+      for (int i = 0; i < n; ++i) dx.col(i) = uncoupled(i) * F.col(i);
+      return;
+    }
+    Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(F.data(), 3 * n), x;
+    for (int i : sys_->fixedNodes()) b.segment<3>(3 * i).setZero();
+    chol_.solve(b, x);
+    dx = Eigen::Map<const Eigen::Matrix3Xd>(x.data(), 3, n) * resp_.xFactor;
+  }
+
+  const StepResponse& response() const { return resp_; }
+
+ private:
+  Eigen::Matrix3d uncoupled(int u) const {
+    const double m = sys_->nodeMass()[u];
+    for (int f : sys_->fixedNodes())
+      if (f == u) return Eigen::Matrix3d::Zero();
+    return Eigen::Matrix3d::Identity() * (resp_.xFactor / (resp_.mFactor * m));
+  }
+
+  void factorize(const Eigen::Matrix3Xd& x) {
+    const int n = sys_->nodes();
+    Eigen::Matrix3Xd f;
+    sys_->computeForce(x, Eigen::Matrix3Xd::Zero(3, n), f);  // linearise the force fields at x
+    sys_->assembleStiffness(A_);
+    A_.scale(resp_.kFactor);
+    const Eigen::VectorXd& m = sys_->nodeMass();
+    if (resp_.mFactor != 0)
+      for (int i = 0; i < n; ++i) A_.block(A_.diagonalSlot(i)).diagonal().array() += resp_.mFactor * m[i];
+    A_.constrainNodes(sys_->fixedNodes());
+    std::string msg;
+    if (!chol_.factorize(A_, msg)) throw error("cannot factorize the body's step matrix for the contact compliance: " + msg);
+  }
+
+  const Eigen::MatrixX3d& column(int v) {
+    auto it = columns_.find(v);
+    if (it != columns_.end()) return it->second;
+    // Bound the cache (each column is 3 x 3n doubles).
+    if (columns_.size() * 9.0 * sys_->nodes() * 8 > 256e6) columns_.clear();
+    const int n3 = 3 * sys_->nodes();
+    Eigen::MatrixX3d col(n3, 3);
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(n3), x;
+    for (int k = 0; k < 3; ++k) {
+      e.setZero();
+      bool fixed = false;
+      for (int f : sys_->fixedNodes()) fixed |= f == v;
+      if (!fixed) e[3 * v + k] = 1.0;
+      chol_.solve(e, x);
+      col.col(k) = x * resp_.xFactor;
+    }
+    for (int f : sys_->fixedNodes()) col.middleRows<3>(3 * f).setZero();
+    return columns_.emplace(v, std::move(col)).first->second;
+  }
+
+  Mode mode_ = Mode::Precomputed;
+  std::unique_ptr<MechanicalSystem> sys_;
+  StepResponse resp_;
+  BlockSparseMatrix A_;
+  CholmodSolver chol_;
+  std::unordered_map<int, Eigen::MatrixX3d> columns_;
+};
+
+class GenericConstraintSolver : public Component, public ConstraintSolver {
+ public:
+  using Component::Component;
+  void init() override {
+    maxIt_ = static_cast<int>(attrs_.integer("maxIterations"));
+    tol_ = attrs_.real("tolerance");
+    if (attrs_.isSet("mu")) muOverride_ = attrs_.real("mu");
+    if (!hasAnimationLoop())
+      throw error("needs FreeMotionAnimationLoop in the root node (constraint contact runs after the free motion)");
+    for (ConstraintCorrection* c : scene().all<ConstraintCorrection>()) {
+      scene().initComponent(*c);
+      corrections_.push_back(c);
+    }
+  }
+
+  std::optional<Diverged> solve(CollisionPipeline& pipe, double h, int stepIndex, double time) override {
+    iterations_ = 0;
+    residual_ = 0;
+    if (pipe.settings().response != ContactSettings::Response::Constraint) return std::nullopt;
+    const double mu = muOverride_ >= 0 ? muOverride_ : pipe.settings().mu;
+    for (SurfaceCollisionModel* surf : pipe.surfaces()) {
+      if (!surf->active() || surf->contacts().empty()) continue;
+      ConstraintCorrection* cc = correctionFor(surf->mstate());
+      if (!cc) throw surf->error("constraint contact needs a constraint correction in the node of '" + surf->mstate().name() +
+                                 "' (PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or "
+                                 "UncoupledConstraintCorrection)");
+      if (auto bad = solveBody(*surf, *cc, mu, h, stepIndex, time)) return bad;
+    }
+    return std::nullopt;
+  }
+  int lastIterations() const override { return iterations_; }
+  double lastResidual() const override { return residual_; }
+
+ private:
+  bool hasAnimationLoop() const {
+    for (const auto& c : scene().root().components())
+      if (c->typeName() == "FreeMotionAnimationLoop") return true;
+    return false;
+  }
+  ConstraintCorrection* correctionFor(const MechanicalObject& m) const {
+    for (ConstraintCorrection* c : corrections_)
+      if (&c->mstate() == &m) return c;
+    return nullptr;
+  }
+
+  std::optional<Diverged> solveBody(SurfaceCollisionModel& surf, ConstraintCorrection& cc, double mu, double h,
+                                    int stepIndex, double time) {
+    MechanicalObject& s = surf.mstate();
+    std::vector<Contact>& cs = surf.contacts();
+    const int m = static_cast<int>(cs.size());
+    cc.prepare();
+    // Rows R_i = [-n^T; t1^T; t2^T] acting on the contact point.
+    std::vector<Eigen::Matrix3d> R(m);
+    std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());
+    for (int i = 0; i < m; ++i) {
+      const Contact& c = cs[i];
+      Eigen::Vector3d t1 = c.n.unitOrthogonal(), t2 = c.n.cross(t1);
+      R[i].row(0) = -c.n.transpose();
+      R[i].row(1) = t1.transpose();
+      R[i].row(2) = t2.transpose();
+      const Eigen::Vector3d p = c.point(s.x);
+      const Eigen::Vector3d at = c.sphere->centre() - c.sphere->radius() * c.n;
+      const Eigen::Vector3d slip = (p - c.p0) - h * c.sphere->body().pointVelocity(at);
+      dfree[i] = Eigen::Vector3d(c.gap(s.x), t1.dot(slip), t2.dot(slip));
+    }
+    // Delassus blocks W_ij = R_i (sum_a sum_b w_a w_b C(a, b)) R_j^T.
+    Eigen::MatrixXd W(3 * m, 3 * m);
+    for (int i = 0; i < m; ++i)
+      for (int j = 0; j < m; ++j) {
+        Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
+        for (int a = 0; a < cs[i].count; ++a)
+          for (int b = 0; b < cs[j].count; ++b) Cij += cs[i].w[a] * cs[j].w[b] * cc.block(cs[i].nodes[a], cs[j].nodes[b]);
+        W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
+      }
+    // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by
+    // more than tolerance x the largest force.
+    for (int it = 0; it < maxIt_; ++it) {
+      double change = 0, scale = 1e-300;
+      for (int i = 0; i < m; ++i) {
+        Eigen::Vector3d d = dfree[i];
+        for (int j = 0; j < m; ++j) d += W.block<3, 3>(3 * i, 3 * j) * lambda[j];
+        const Eigen::Matrix3d& Wii = W.block<3, 3>(3 * i, 3 * i);
+        Eigen::Vector3d l = lambda[i];
+        // Normal: make the gap zero if that pushes, else release.
+        l[0] = std::max(0.0, l[0] - d[0] / Wii(0, 0));
+        d += Wii.col(0) * (l[0] - lambda[i][0]);
+        // Tangential: stick (zero slip), then project onto the cone |l_t| <= mu l_n.
+        Eigen::Vector2d lt = l.tail<2>() - Wii.block<2, 2>(1, 1).ldlt().solve(d.tail<2>());
+        const double lim = mu * l[0];
+        if (lt.norm() > lim) lt *= lim / std::max(lt.norm(), 1e-300);
+        l.tail<2>() = lt;
+        change = std::max(change, (l - lambda[i]).norm());
+        scale = std::max(scale, l.norm());
+        lambda[i] = l;
+      }
+      iterations_ = it + 1;
+      residual_ = change / scale;
+      if (residual_ <= tol_) break;
+    }
+    // Correct the free motion: forces on the nodes, displacement C F, velocity to match.
+    Eigen::Matrix3Xd F = Eigen::Matrix3Xd::Zero(3, s.size()), dx;
+    for (int i = 0; i < m; ++i) {
+      Contact& c = cs[i];
+      c.force = R[i].transpose() * lambda[i];
+      c.active = lambda[i][0] > 0;
+      for (int a = 0; a < c.count; ++a) F.col(c.nodes[a]) += c.w[a] * c.force;
+    }
+    cc.apply(F, dx);
+    const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
+    s.x += dx;
+    const StepResponse& r = cc.response();
+    if (r.vFactor != 0) s.v += dx * (r.vFactor / r.xFactor);
+    if (!s.x.allFinite() || !s.v.allFinite()) {
+      s.x = x0;
+      s.v = v0;
+      Diverged d;
+      d.step = stepIndex;
+      d.time = time;
+      d.reason = "constraint solver produced non-finite forces";
+      d.object = s.name();
+      return d;
+    }
+    return std::nullopt;
+  }
+
+  int maxIt_ = 1000;
+  double tol_ = 1e-8;
+  double muOverride_ = -1;
+  int iterations_ = 0;
+  double residual_ = 0;
+  std::vector<ConstraintCorrection*> corrections_;
+};
+
+class FreeMotionAnimationLoop : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    if (node().parent()) throw error("belongs in the root node");
+    if (scene().all<ConstraintSolver>().empty())
+      throw error("needs a constraint solver in the root node (GenericConstraintSolver or LCPConstraintSolver)");
+  }
+};
+
+}  // namespace
+
+void registerConstraintContact(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "FreeMotionAnimationLoop";
+    s.category = "collision";
+    s.doc = "Step loop for constraint contact: drivers, collision detection, the free motion of every body, then "
+            "the constraint solver corrects positions and velocities so that contacts do not penetrate and "
+            "friction stays in the Coulomb cone. Root node only.";
+    s.add(AttrSpec::boolean("solveVelocityConstraintFirst").def("false").help("accepted for SOFA scenes; positions are corrected"));
+    s.add(AttrSpec::boolean("parallelCollisionDetectionAndFreeMotion").def("false").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("parallelODESolving").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<FreeMotionAnimationLoop>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "GenericConstraintSolver";
+    s.aliases = {"LCPConstraintSolver", "BlockGaussSeidelConstraintSolver", "ProjectedGaussSeidelConstraintSolver"};
+    s.category = "collision";
+    s.doc = "Projected Gauss-Seidel on the contacts' Delassus operator (3x3 block per contact pair): normal force "
+            ">= 0 with zero gap when pushing, friction in the Coulomb cone. Stops when no contact force changes by "
+            "more than tolerance x the largest force, or after maxIterations.";
+    s.add(AttrSpec::integer("maxIterations").alias("maxIt").def("1000").atLeast(1).help("Gauss-Seidel sweeps at most"));
+    s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help("relative change of the contact forces to stop at"));
+    s.add(AttrSpec::real("mu").atLeast(0).help("friction coefficient (overrides the CollisionResponse's)"));
+    s.add(AttrSpec::boolean("build_lcp").def("true").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("computeConstraintForces").def("true").help("accepted for SOFA scenes; forces are always computed"));
+    s.add(AttrSpec::string("resolutionMethod").def("ProjectedGaussSeidel").help("accepted for SOFA scenes; projected Gauss-Seidel is used"));
+    s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<GenericConstraintSolver>(c); };
+    r.add(std::move(s));
+  }
+  const char* corr[3][2] = {
+      {"PrecomputedConstraintCorrection",
+       "Contact compliance of a body from its step matrix A = mFactor M + kFactor K at rest, factorised once "
+       "(CHOLMOD); columns are cached per node. Exact for small rotations, cheap per step."},
+      {"LinearSolverConstraintCorrection",
+       "Contact compliance of a body from its step matrix at the current state, refactorised every step: exact "
+       "for the corotational stiffness, about one factorisation per step."},
+      {"UncoupledConstraintCorrection",
+       "Contact compliance from the lumped mass only (no coupling through the stiffness): cheapest, and a poor "
+       "model of soft tissue; for comparison with SOFA scenes."}};
+  for (auto& c : corr) {
+    ComponentSpec s;
+    s.name = c[0];
+    if (std::string(c[0]) == "LinearSolverConstraintCorrection") s.aliases = {"GenericConstraintCorrection"};
+    s.category = "collision";
+    s.doc = c[1];
+    s.add(AttrSpec::string("solverName").def("").help("accepted for SOFA scenes; the node's solver is used"));
+    s.add(AttrSpec::string("compliance").def("").help("accepted for SOFA scenes; the compliance comes from the mass"));
+    s.add(AttrSpec::boolean("wire_optimization").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& ctx) { return std::make_unique<ConstraintCorrection>(ctx); };
+    r.add(std::move(s));
+  }
+}
+
+}  // namespace viscera

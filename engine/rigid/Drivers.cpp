@@ -1,0 +1,160 @@
+// Kinematic drivers of rigid bodies: TrajectoryDriver (a timed pose CSV, interpolated) and SOFA's
+// LinearMovementConstraint (key times with displacements from the initial pose).
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+
+#include "engine/Roles.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/rigid/RigidObject.h"
+#include "motion/Trajectory.h"
+
+namespace viscera {
+
+namespace {
+
+class TrajectoryDriver : public Component, public Driver {
+ public:
+  using Component::Component;
+  void init() override {
+    body_ = &contextRigid(*this);
+    if (body_->driven) throw error("object", "'" + body_->name() + "' already has a driver");
+    body_->driven = true;
+    const std::string path = scene().resolvePath(attrs_.str("filename"));
+    try {
+      traj_ = motion::readTrajectoryCsv(path);
+    } catch (const Error& e) {
+      // The trajectory's own file:line comes first; say which scene element asked for it.
+      throw Error(e.where(), std::string(e.what()).substr(e.where().known() ? e.where().str().size() + 2 : 0) +
+                                 " (read for " + attrs_.loc("filename").str() + ": TrajectoryDriver.filename)");
+    }
+    offset_ = attrs_.real("timeOffset");
+    const auto& r = attrs_.reals("rotation");
+    const auto& t = attrs_.reals("translation");
+    R_ = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
+    T_ = Eigen::Vector3d(t[0], t[1], t[2]);
+    drive(scene().startTime());
+    body_->p0 = body_->p;
+    body_->q0 = body_->q;
+  }
+  void drive(double t) override {
+    const double tt = t + offset_;
+    motion::Pose pose = traj_.sample(tt);
+    motion::Twist tw = traj_.twist(tt);
+    body_->setMotion(R_ * pose.p + T_, R_ * pose.q, R_ * tw.v, R_ * tw.w);
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "duration") out.values = {traj_.end() - offset_};
+    else return false;
+    return true;
+  }
+
+ private:
+  RigidObject* body_ = nullptr;
+  motion::Trajectory traj_;
+  double offset_ = 0;
+  Eigen::Quaterniond R_ = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d T_ = Eigen::Vector3d::Zero();
+};
+
+class LinearMovementConstraint : public Component, public Driver {
+ public:
+  using Component::Component;
+  void init() override {
+    body_ = &contextRigid(*this, "mstate");
+    if (body_->driven) throw error("'" + body_->name() + "' already has a driver");
+    body_->driven = true;
+    for (int i : attrs_.ints("indices"))
+      if (i != 0) throw error("indices", "a Rigid3d object has one frame (index 0), got " + std::to_string(i));
+    times_ = attrs_.reals("keyTimes");
+    const auto& m = attrs_.reals("movements");
+    if (times_.empty()) throw error("keyTimes", "needs at least one key time");
+    for (size_t k = 1; k < times_.size(); ++k)
+      if (!(times_[k] > times_[k - 1]))
+        throw error("keyTimes", "must increase (key " + std::to_string(k) + " at " + std::to_string(times_[k]) +
+                                    " follows " + std::to_string(times_[k - 1]) + ")");
+    if (m.size() != 6 * times_.size())
+      throw error("movements", "needs 6 numbers (dx dy dz rx ry rz) per key time: " + std::to_string(times_.size()) +
+                                   " key times, " + std::to_string(m.size()) + " numbers");
+    for (size_t k = 0; k < times_.size(); ++k) {
+      d_.emplace_back(m[6 * k], m[6 * k + 1], m[6 * k + 2]);
+      r_.emplace_back(m[6 * k + 3], m[6 * k + 4], m[6 * k + 5]);
+    }
+    relative_ = attrs_.boolean("relativeMovements");
+    drive(scene().startTime());
+  }
+  // Piecewise-linear displacement and rotation vector between keys, held outside them.
+  void drive(double t) override {
+    Eigen::Vector3d d, r, vd = Eigen::Vector3d::Zero(), vr = Eigen::Vector3d::Zero();
+    const size_t n = times_.size();
+    if (t <= times_.front()) {
+      d = d_.front();
+      r = r_.front();
+    } else if (t >= times_.back()) {
+      d = d_.back();
+      r = r_.back();
+    } else {
+      size_t k = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin() - 1;
+      const double h = times_[k + 1] - times_[k], a = (t - times_[k]) / h;
+      d = (1 - a) * d_[k] + a * d_[k + 1];
+      r = (1 - a) * r_[k] + a * r_[k + 1];
+      vd = (d_[k + 1] - d_[k]) / h;
+      vr = (r_[k + 1] - r_[k]) / h;
+    }
+    (void)n;
+    const Eigen::Quaterniond rot = r.norm() > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(r.norm(), r.normalized()))
+                                                : Eigen::Quaterniond::Identity();
+    if (relative_) body_->setMotion(body_->p0 + d, rot * body_->q0, vd, vr);
+    else body_->setMotion(d, rot, vd, vr);
+  }
+
+ private:
+  RigidObject* body_ = nullptr;
+  std::vector<double> times_;
+  std::vector<Eigen::Vector3d> d_, r_;
+  bool relative_ = true;
+};
+
+}  // namespace
+
+void registerDrivers(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "TrajectoryDriver";
+    s.category = "driver";
+    s.doc = "Moves a rigid body (the instrument) along a recorded trajectory: a CSV of t,x,y,z,qx,qy,qz,qw rows in "
+            "the scene's units (header optional). Positions are interpolated linearly and orientations by slerp "
+            "between samples; the velocity is that of the interpolation. Before the first sample and after the last "
+            "the pose is held. The trajectory may be placed in the scene by `rotation` then `translation` (a "
+            "registration transform).";
+    s.add(AttrSpec::file("filename").req().help("trajectory CSV (t,x,y,z,qx,qy,qz,qw)"));
+    s.add(AttrSpec::link("object").help("the Rigid3d MechanicalObject (default: the one in the node)"));
+    s.add(AttrSpec::real("timeOffset").def("0").unit(Dimension::time()).help("trajectory time = scene time + timeOffset"));
+    s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the trajectory, after the rotation"));
+    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z, applied to the trajectory"));
+    s.factory = [](BuildContext& c) { return std::make_unique<TrajectoryDriver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "LinearMovementConstraint";
+    s.aliases = {"LinearMovementProjectiveConstraint"};
+    s.category = "driver";
+    s.doc = "Moves a rigid body through key frames (SOFA's LinearMovementConstraint): at each key time a "
+            "displacement dx dy dz and a rotation vector rx ry rz (radians) from the initial pose; linear in "
+            "between, held outside. The angular velocity is the rate of the rotation vector (exact for a fixed "
+            "axis).";
+    s.add(AttrSpec::reals("keyTimes").req().unit(Dimension::time()).help("key times, increasing"));
+    s.add(AttrSpec::reals("movements").req().help("6 numbers per key time: dx dy dz rx ry rz"));
+    s.add(AttrSpec::ints("indices").def("0").help("the frame moved (a Rigid3d object has one: 0)"));
+    s.add(AttrSpec::boolean("relativeMovements").def("true").help("movements are from the initial pose (false: absolute poses)"));
+    s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<LinearMovementConstraint>(c); };
+    r.add(std::move(s));
+  }
+}
+
+}  // namespace viscera

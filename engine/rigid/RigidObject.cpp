@@ -1,0 +1,70 @@
+#include "engine/rigid/RigidObject.h"
+
+#include <cmath>
+
+#include "engine/core/Scene.h"
+
+namespace viscera {
+
+bool isRigidTemplate(const std::string& t) { return t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f"; }
+
+void RigidObject::init() {
+  std::vector<double> pos = attrs_.isSet("position") ? linkedReals("position") : std::vector<double>{0, 0, 0, 0, 0, 0, 1};
+  if (pos.size() != 7)
+    throw error("position", "a Rigid3d object holds one frame: 7 numbers x y z qx qy qz qw (got " +
+                                std::to_string(pos.size()) + ")");
+  Eigen::Quaterniond rot(pos[6], pos[3], pos[4], pos[5]);
+  if (!(rot.norm() > 1e-12)) throw error("position", "the orientation quaternion is zero");
+  rot.normalize();
+  Eigen::Vector3d at(pos[0], pos[1], pos[2]);
+  // Placement, as for Vec3d objects: scale the position, then rotate, then translate.
+  const auto& s = attrs_.reals("scale3d");
+  const auto& r = attrs_.reals("rotation");
+  const auto& t = attrs_.reals("translation");
+  const Eigen::Quaterniond R = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
+  p = R * Eigen::Vector3d(s[0] * at.x(), s[1] * at.y(), s[2] * at.z()) + Eigen::Vector3d(t[0], t[1], t[2]);
+  q = (R * rot).normalized();
+  p0 = p;
+  q0 = q;
+  if (attrs_.isSet("velocity")) {
+    auto vel = linkedReals("velocity");
+    if (vel.size() != 6)
+      throw error("velocity", "a Rigid3d velocity is 6 numbers: vx vy vz wx wy wz (got " + std::to_string(vel.size()) + ")");
+    v = Eigen::Vector3d(vel[0], vel[1], vel[2]);
+    w = Eigen::Vector3d(vel[3], vel[4], vel[5]);
+  }
+  if (attrs_.isSet("rest_position")) throw error("rest_position", "is not used by Rigid3d objects");
+}
+
+void RigidObject::setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,
+                            const Eigen::Vector3d& ang) {
+  p = pos;
+  q = rot.normalized();
+  v = lin;
+  w = ang;
+}
+
+bool RigidObject::field(const std::string& name, FieldValue& out) const {
+  if (name == "position") out.values = {p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()};
+  else if (name == "rest_position") out.values = {p0.x(), p0.y(), p0.z(), q0.x(), q0.y(), q0.z(), q0.w()};
+  else if (name == "velocity") out.values = {v.x(), v.y(), v.z(), w.x(), w.y(), w.z()};
+  else return false;
+  return true;
+}
+
+RigidObject& contextRigid(Component& c, const std::string& attr) {
+  RigidObject* r = nullptr;
+  if (c.spec().find(attr) && c.attrs().isSet(attr)) {
+    r = dynamic_cast<RigidObject*>(c.linkedComponent(attr));
+    if (!r) throw c.error(attr, "does not link to a MechanicalObject with template=\"Rigid3d\"");
+  } else {
+    r = c.node().findInContext<RigidObject>();
+    if (!r) throw c.error("no rigid body (MechanicalObject template=\"Rigid3d\") in its node or above");
+  }
+  c.scene().initComponent(*r);
+  return *r;
+}
+
+}  // namespace viscera
