@@ -154,7 +154,8 @@ int cmdRun(const RunOptions& o) {
     if (const CollisionPipeline* p = sim.pipeline())
       j << ",\n  \"contact\": {\"response\": \""
         << (p->settings().response == ContactSettings::Response::Penalty ? "penalty" : "constraint")
-        << "\", \"max_contacts\": " << p->maxContacts() << "}";
+        << "\", \"max_contacts\": " << p->maxContacts() << ", \"max_penetration\": " << p->maxPenetration()
+        << ", \"contact_distance\": " << p->settings().contactDistance << "}";
     j << "\n}\n";
     io::writeFileAtomic(o.summary, j.str());
   }

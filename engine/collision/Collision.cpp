@@ -40,6 +40,7 @@ struct SurfaceCollisionModel::Bvh {
 void SurfaceCollisionModel::init() {
   const std::string& t = typeName();
   kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
+  if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
   state_ = &contextState(*this);
   stiffness_ = attrs_.isSet("contactStiffness") ? attrs_.real("contactStiffness") : 0.0;
   Topology& topo = contextTopology(*this, "topology", false);
@@ -370,6 +371,17 @@ void CollisionPipeline::finish() {
     }
   }
   maxContacts_ = std::max(maxContacts_, total);
+  // Penetration of the vertices into the spheres (not the contact distance: the sphere itself).
+  lastPenetration_ = -1e300;
+  for (SurfaceCollisionModel* s : surfaces_) {
+    const Eigen::Matrix3Xd& x = s->mstate().x;
+    for (SphereCollisionModel* sp : spheres_) {
+      const Eigen::Vector3d c = sp->centre();
+      const double R = sp->radius();
+      for (int v : s->vertices()) lastPenetration_ = std::max(lastPenetration_, R - (x.col(v) - c).norm());
+    }
+  }
+  maxPenetration_ = std::max(maxPenetration_, lastPenetration_);
 }
 
 int CollisionPipeline::contactCount() const {

@@ -159,9 +159,14 @@ class CollisionPipeline : public Component {
   const std::vector<SphereCollisionModel*>& spheres() const { return spheres_; }
   int contactCount() const;
   int maxContacts() const { return maxContacts_; }
+  // How far a surface vertex is inside a sphere at the end of the last step (radius minus its
+  // distance to the centre; <= 0 when none is inside), and the largest over all steps.
+  double lastPenetration() const { return lastPenetration_; }
+  double maxPenetration() const { return maxPenetration_; }
 
  private:
   ContactSettings settings_;
+  double lastPenetration_ = -1e300, maxPenetration_ = -1e300;
   std::vector<SphereCollisionModel*> spheres_;
   std::vector<SurfaceCollisionModel*> surfaces_;
   int maxContacts_ = 0;
