@@ -59,11 +59,11 @@ void MechanicalSystem::computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matr
   for (ForceField* ff : forces_) ff->addForce(x, v, f);
 }
 
-void MechanicalSystem::addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor) const {
-  for (ForceField* ff : forces_) ff->addDForce(dx, df, factor);
+void MechanicalSystem::addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor, double undampedScale) const {
+  for (ForceField* ff : forces_) ff->addDForce(dx, df, ff->rayleighDamped() ? factor : factor * undampedScale);
 }
 
-void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K) {
+void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K, double undampedScale) {
   if (!patternReady_ || K.blockRows() != nodes()) {
     std::vector<std::pair<int, int>> pairs;
     for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
@@ -72,7 +72,7 @@ void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K) {
     patternReady_ = true;
   }
   K.setZero();
-  for (ForceField* ff : forces_) ff->addStiffness(K, 1.0);
+  for (ForceField* ff : forces_) ff->addStiffness(K, ff->rayleighDamped() ? 1.0 : undampedScale);
 }
 
 void MechanicalSystem::project(Eigen::Matrix3Xd& v) const {

@@ -28,11 +28,13 @@ class MechanicalSystem {
 
   // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x.
   void computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f);
-  // df += factor * K dx, matrix-free.
-  void addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor) const;
-  // K (as the force fields report it at their last linearisation) into `K`; the pattern is built
-  // on first use and kept.
-  void assembleStiffness(BlockSparseMatrix& K);
+  // df += factor * K dx, matrix-free. `undampedScale` multiplies the K of force fields that
+  // Rayleigh damping does not apply to (contact), so that a solver can form
+  // K_damped + undampedScale K_undamped in one pass.
+  void addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor, double undampedScale = 1.0) const;
+  // K_damped + undampedScale K_undamped (as the force fields report it at their last
+  // linearisation) into `K`; the pattern is built on first use and kept.
+  void assembleStiffness(BlockSparseMatrix& K, double undampedScale = 1.0);
   // Zeroes the rows of fixed nodes.
   void project(Eigen::Matrix3Xd& v) const;
   // Non-finite values and inverted elements at (x, v), as a failure, or nothing.

@@ -46,6 +46,9 @@ class ForceField {
   virtual void addStiffness(BlockSparseMatrix& K, double kFactor) const {}
   // Potential energy at x (0 when the field has none).
   virtual double potentialEnergy(const Eigen::Matrix3Xd& x) const { return 0.0; }
+  // Whether Rayleigh stiffness damping applies to this field's K. Contact penalties return false:
+  // their stiffness must not act as a dashpot anchored to the world.
+  virtual bool rayleighDamped() const { return true; }
   // Elements that are inverted at x (for the health check).
   virtual std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const { return {}; }
 };

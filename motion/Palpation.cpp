@@ -8,15 +8,18 @@
 // Between pokes the tool backs off along the normal to A' (clearance lift + delta), rises to
 // the safe height (box top + lift + delta + radius), moves horizontally to above the next A',
 // descends and moves in along the normal to the next A. For a top poke A' is already at the
-// safe height.
+// safe height. The trajectory starts at the first A; pokes are added while the next one, with
+// its moves, is over by `duration`, and the tool then holds at the safe height.
 //
 // Why delta: the output is the path sampled at `rate`, and a consumer interpolates linearly
-// between samples, so corners of the path are cut by chords. A chord between two path points
-// h apart along the path (h <= travelSpeed / rate for moves) stays within h/2 of the path, so
-// raising the clearance of every move by delta = h/2 keeps the chords `lift` clear of the box.
-// Near A, where the clearance is between lift and lift + delta, the path only runs along the
-// face normal and straight along the face, so chords there stay on the outer side of the
-// face's plane at clearance >= lift.
+// between samples, so corners of the path are cut by chords. At ordinary rates that is harmless,
+// but when samples lie far apart compared with lift + radius a chord can skip a corner and pass
+// through the specimen. A chord between two path points h apart along the path (h <=
+// travelSpeed / rate for moves) stays within h/2 of the path, so raising the clearance of every
+// move by delta = h/2 keeps the chords `lift` clear of the box at any rate. Near A, where the
+// clearance is between lift and lift + delta, the path only runs along the face normal and
+// straight along the face, so chords there stay on the outer side of the face's plane at
+// clearance >= lift.
 #include "motion/Palpation.h"
 
 #include <algorithm>
@@ -59,7 +62,8 @@ std::string num(double v) {
 void validate(const PalpationSpec& s) {
   const char* axes[3] = {"x", "y", "z"};
   for (int a = 0; a < 3; ++a) {
-    if (!std::isfinite(s.boxMin[a]) || !std::isfinite(s.boxMax[a])) invalid("box", std::string("the ") + axes[a] + " bounds are not finite");
+    if (!std::isfinite(s.boxMin[a]) || !std::isfinite(s.boxMax[a]))
+      invalid("box", std::string("the ") + axes[a] + " bounds are not finite");
     if (!(s.boxMax[a] > s.boxMin[a]))
       invalid("box", std::string("empty in ") + axes[a] + " (min " + num(s.boxMin[a]) + ", max " + num(s.boxMax[a]) + ")");
   }

@@ -199,10 +199,11 @@ Trajectory parseTrajectoryCsv(const std::string& text, const std::string& name) 
     if (fields.size() != 8)
       fail(name, lineNo, 0, "expected 8 columns (t,x,y,z,qx,qy,qz,qw), got " + std::to_string(fields.size()));
     for (int c = 0; c < 8; ++c) {
+      const std::string column = std::string("column '") + kColumns[c] + "'";
       if (parseNumber(fields[c].text, values[c]) == Parsed::NotANumber)
-        fail(name, lineNo, fields[c].col, std::string("column '") + kColumns[c] + "': " + quoted(fields[c].text) + " is not a number");
+        fail(name, lineNo, fields[c].col, column + ": " + quoted(fields[c].text) + " is not a number");
       if (!std::isfinite(values[c]))
-        fail(name, lineNo, fields[c].col, std::string("column '") + kColumns[c] + "' is not finite (" + quoted(fields[c].text) + ")");
+        fail(name, lineNo, fields[c].col, column + " is not finite (" + quoted(fields[c].text) + ")");
     }
 
     const Eigen::Quaterniond q(values[7], values[4], values[5], values[6]);  // Eigen's order is w, x, y, z
@@ -234,8 +235,7 @@ Trajectory readTrajectoryCsv(const std::string& path) {
 std::string formatTrajectoryCsv(const Trajectory& tr) {
   std::string out = std::string(kHeader) + "\n";
   for (int i = 0; i < tr.size(); ++i) {
-    const double row[8] = {tr.t[i],       tr.p[i].x(),   tr.p[i].y(),   tr.p[i].z(),
-                           tr.q[i].x(),   tr.q[i].y(),   tr.q[i].z(),   tr.q[i].w()};
+    const double row[8] = {tr.t[i], tr.p[i].x(), tr.p[i].y(), tr.p[i].z(), tr.q[i].x(), tr.q[i].y(), tr.q[i].z(), tr.q[i].w()};
     for (int c = 0; c < 8; ++c) {
       if (c) out += ',';
       out += formatDouble(row[c]);

@@ -48,7 +48,8 @@ std::vector<std::string> words(const std::string& s) {
 void parseBox(const std::string& text, motion::PalpationSpec& spec) {
   const auto w = words(text);
   if (w.size() != 6)
-    throw Error("--box: expected 6 numbers \"xmin ymin zmin xmax ymax zmax\", got " + std::to_string(w.size()) + " in '" + text + "'");
+    throw Error("--box: expected 6 numbers \"xmin ymin zmin xmax ymax zmax\", got " + std::to_string(w.size()) + " in '" +
+                text + "'");
   double v[6];
   for (int i = 0; i < 6; ++i) {
     char* end = nullptr;

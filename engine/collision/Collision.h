@@ -106,6 +106,7 @@ class SurfaceCollisionModel : public Component, public ForceField {
   void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void addStiffness(BlockSparseMatrix& K, double kFactor) const override;
+  bool rayleighDamped() const override { return false; }
   // Sets each contact's force from the end-of-step positions (penalty response).
   void finishPenalty(const Eigen::Matrix3Xd& x);
 

@@ -1,5 +1,6 @@
 // EulerImplicitSolver in SOFA's formulation (one linear solve per step):
 //   [(1 + h rM) M - h (h + rK) K] dv = h [f(x, v) + (h + rK) K v - rM M v],
+//   where contact stiffness (not Rayleigh damped) enters with h in place of h + rK;
 //   v <- v + dv, x <- x + h v; fixed nodes are projected out of the system.
 #include <cmath>
 #include <memory>
@@ -38,11 +39,14 @@ class EulerImplicitSolver : public Component, public OdeSolver {
 
     const double mFact = 1.0 + h * rM_;
     const double kFact = -h * (h + rK_);
+    // Contact stiffness is not Rayleigh damped: its K enters as -h^2 K (and h K v), not
+    // -h (h + rK) K, hence the scale h / (h + rK) on the undamped fields.
+    const double uScale = h / (h + rK_);
     const Eigen::VectorXd& m = sys_->nodeMass();
     Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
     LinearProblem problem;
     if (linear_->needsMatrix()) {
-      sys_->assembleStiffness(K_);
+      sys_->assembleStiffness(K_, uScale);
       K_.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
       // A = kFact K + mFact M, constrained.
       K_.scale(kFact);
@@ -56,11 +60,11 @@ class EulerImplicitSolver : public Component, public OdeSolver {
       problem.diagonal.resize(3 * n);
       for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = K_.block(K_.diagonalSlot(i)).diagonal();
     } else {
-      sys_->addKdx(s.v, Kv, 1.0);
-      problem.apply = [this, n, mFact, kFact, &m](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+      sys_->addKdx(s.v, Kv, 1.0, uScale);
+      problem.apply = [this, n, mFact, kFact, uScale, &m](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
         Eigen::Matrix3Xd Q = P * m.asDiagonal() * mFact;
-        sys_->addKdx(P, Q, kFact);
+        sys_->addKdx(P, Q, kFact, uScale);
         sys_->project(Q);
         q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
       };

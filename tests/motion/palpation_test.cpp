@@ -172,6 +172,16 @@ TEST(Palpation, ManySeedsAndSettings) {
     s.depthJitter = 0.3;  // deepest 11.7: the centre stays outside the box
     checkPalpation(s, generatePalpation(s));
 
+    // Sampling far coarser than the moves (120 length units between samples): the chords skip
+    // whole legs of the path and must still stay clear.
+    PalpationSpec c = phantom(seed);
+    c.rate = 1;
+    c.travelSpeed = 120;
+    c.lift = 1;
+    c.rest = 2;  // a sample in every rest, so that pokes stay apart
+    c.duration = 200;
+    checkPalpation(c, generatePalpation(c));
+
     // Tiny box, a tool bigger than it, fine sampling.
     PalpationSpec t;
     t.boxMin = {-1, -2, 5};
@@ -231,7 +241,8 @@ TEST(Palpation, JitterVariesTheDepth) {
   const PalpationSpec s = phantom(9);
   const auto runs = pokeRuns(s, generatePalpation(s).trajectory);
   ASSERT_GE(runs.size(), 3u);
-  auto [lo, hi] = std::minmax_element(runs.begin(), runs.end(), [](const PokeRun& a, const PokeRun& b) { return a.penetration < b.penetration; });
+  auto [lo, hi] = std::minmax_element(runs.begin(), runs.end(),
+                                      [](const PokeRun& a, const PokeRun& b) { return a.penetration < b.penetration; });
   EXPECT_GT(hi->penetration - lo->penetration, 0.05 * s.depth);
 }
 
