@@ -22,6 +22,9 @@ class VTKExporter : public Component, public Observer {
     fem_ = node().find<TetrahedronFEMForceField>();
     if (fem_) scene().initComponent(*fem_);
     every_ = static_cast<int>(attrs_.integer("exportEveryNumberOfSteps"));
+    // Compressed frames also store connectivity and offsets as Int32; uncompressed ones keep the
+    // plain Int64 layout.
+    options_.compress = options_.int32Indices = attrs_.boolean("compress");
     std::istringstream in(attrs_.str("fields"));
     for (std::string f; in >> f;) {
       if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force")
@@ -62,7 +65,7 @@ class VTKExporter : public Component, public Observer {
     std::snprintf(num, sizeof num, "_%06d.vtu", step);
     const std::string file = base_ + num;
     static const TetList none;
-    io::writeVtu(file, s.x, fem_ ? fem_->tetrahedra() : none, pd, cd);
+    io::writeVtu(file, s.x, fem_ ? fem_->tetrahedra() : none, pd, cd, options_);
     written_.push_back({t, std::filesystem::path(file).filename().string()});
     lastStep_ = step;
     // The index is rewritten each time so that an interrupted run still opens in ParaView.
@@ -72,6 +75,7 @@ class VTKExporter : public Component, public Observer {
   MechanicalObject* state_ = nullptr;
   TetrahedronFEMForceField* fem_ = nullptr;
   int every_ = 1;
+  io::VtuWriteOptions options_;
   int lastStep_ = -1;
   std::vector<std::string> fields_;
   std::string base_;
@@ -91,6 +95,7 @@ void registerVTKExporter(Registry& r) {
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
   s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
   s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises"));
+  s.add(AttrSpec::boolean("compress").def("true").help("zlib-compress the arrays (VTK's vtkZLibDataCompressor; ParaView reads them)"));
   s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always .vtu"));
   s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
   s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));

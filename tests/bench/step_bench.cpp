@@ -1,4 +1,5 @@
-// Time per step of the reference scenes, on one and on two threads (Google Benchmark).
+// Time per step of the reference scenes without the instrument, on one and on two threads (Google
+// Benchmark); the replay with contact is in replay_bench.cpp.
 // `make bench` reports medians over repetitions.
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
@@ -32,10 +33,30 @@ void replaceTag(ElementDesc& el, const std::string& from, const std::string& to)
   }
 }
 
+// Drops the instrument and the contact handling: the per-step cost of the deformable body alone.
+void dropContact(ElementDesc& el) {
+  static const char* tags[] = {"CollisionPipeline", "FreeMotionAnimationLoop", "GenericConstraintSolver",
+                               "BruteForceBroadPhase", "BVHNarrowPhase", "LocalMinDistance", "MinProximityIntersection",
+                               "CollisionResponse", "TriangleCollisionModel", "PrecomputedConstraintCorrection"};
+  auto& c = el.children;
+  c.erase(std::remove_if(c.begin(), c.end(),
+                         [](const ElementDesc& e) {
+                           if (e.tag == "Node") {
+                             for (const auto& a : e.attrs)
+                               if (a.name == "name" && a.value == "instrument") return true;
+                             return false;
+                           }
+                           return std::find(std::begin(tags), std::end(tags), e.tag) != std::end(tags);
+                         }),
+          c.end());
+  for (auto& ch : c) dropContact(ch);
+}
+
 void runScene(benchmark::State& state, const std::string& file, const std::function<void(SceneDesc&)>& edit) {
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(0)));
   SceneDesc desc = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/" + file);
   dropTag(desc.root, "VTKExporter");
+  dropContact(desc.root);
   if (edit) edit(desc);
   auto scene = Scene::build(desc);
   Simulation sim(*scene);

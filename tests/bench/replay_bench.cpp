@@ -1,0 +1,109 @@
+// The 80 s gel-phantom palpation replay with contact (scenes/gel_phantom.xml), on one thread: wall
+// time against the 80 s of simulated time, and (a separate, long benchmark) its accuracy against a
+// run with a ten times smaller time step, as the largest node distance over the 30 Hz frames.
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+#include <string>
+
+#include "engine/Simulation.h"
+#include "engine/collision/Collision.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/scene/SceneReader.h"
+
+using namespace viscera;
+
+namespace {
+
+void dropExporters(ElementDesc& el) {
+  auto& c = el.children;
+  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return e.tag == "VTKExporter"; }), c.end());
+  for (auto& ch : c) dropExporters(ch);
+}
+
+std::unique_ptr<Scene> loadPhantom(double dtScale) {
+  SceneDesc desc = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom.xml");
+  dropExporters(desc.root);
+  auto scene = Scene::build(desc);
+  if (dtScale != 1.0) {
+    // Rebuild with the scaled time step (the root's dt attribute, in seconds here).
+    auto probe = Scene::build(desc);
+    std::ostringstream dt;
+    dt << std::setprecision(17) << probe->dt() * dtScale;
+    desc.root.set("dt", dt.str());
+    scene = Scene::build(desc);
+  }
+  return scene;
+}
+
+MechanicalObject& phantomState(Scene& s) {
+  for (MechanicalObject* m : s.all<MechanicalObject>())
+    if (m->name() == "dofs") return *m;
+  throw std::runtime_error("no 'dofs' in gel_phantom.xml");
+}
+
+void BM_PalpationReplay(benchmark::State& state) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+  for (auto _ : state) {
+    auto scene = loadPhantom(1.0);
+    Simulation sim(*scene);
+    const double duration = 80.0;
+    const int steps = static_cast<int>(std::llround(duration / scene->dt()));
+    auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < steps; ++i)
+      if (auto bad = sim.step()) {
+        state.SkipWithError(bad->str().c_str());
+        return;
+      }
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    state.counters["steps"] = steps;
+    state.counters["dt_ms"] = scene->dt() * 1e3;
+    state.counters["ms_per_step"] = 1e3 * wall / steps;
+    state.counters["realtime_factor"] = duration / wall;
+    state.counters["max_penetration_mm"] = sim.pipeline()->maxPenetration();
+    state.counters["max_contacts"] = sim.pipeline()->maxContacts();
+  }
+}
+
+// Lockstep: the scene's step and ten steps of a tenth, compared every 30 Hz frame.
+void BM_PalpationReplayAccuracy(benchmark::State& state) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+  const double duration = static_cast<double>(state.range(0));
+  for (auto _ : state) {
+    auto coarse = loadPhantom(1.0), fine = loadPhantom(0.1);
+    Simulation a(*coarse), b(*fine);
+    MechanicalObject &xa = phantomState(*coarse), &xb = phantomState(*fine);
+    const double frame = 1.0 / 30.0;
+    const int perFrame = static_cast<int>(std::llround(frame / coarse->dt()));
+    const int frames = static_cast<int>(std::llround(duration / frame));
+    double worst = 0, worstTime = 0, sumFrame = 0;
+    for (int f = 0; f < frames; ++f) {
+      for (int i = 0; i < perFrame; ++i) {
+        if (auto bad = a.step()) return state.SkipWithError(bad->str().c_str());
+        for (int k = 0; k < 10; ++k)
+          if (auto bad = b.step()) return state.SkipWithError(bad->str().c_str());
+      }
+      const double d = (xa.x - xb.x).colwise().norm().maxCoeff();
+      sumFrame += d;
+      if (d > worst) {
+        worst = d;
+        worstTime = a.time();
+      }
+    }
+    state.counters["max_node_distance_mm"] = worst;
+    state.counters["at_time_s"] = worstTime;
+    state.counters["mean_frame_max_mm"] = sumFrame / std::max(frames, 1);
+    state.counters["fine_dt_ms"] = fine->dt() * 1e3;
+  }
+}
+
+}  // namespace
+
+BENCHMARK(BM_PalpationReplay)->Iterations(1)->Repetitions(1)->Unit(benchmark::kSecond)->UseRealTime();
+BENCHMARK(BM_PalpationReplayAccuracy)->Arg(80)->Iterations(1)->Repetitions(1)->Unit(benchmark::kSecond)->UseRealTime();
