@@ -95,7 +95,9 @@ void registerVTKExporter(Registry& r) {
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
   s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
   s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises"));
-  s.add(AttrSpec::boolean("compress").def("true").help("zlib-compress the arrays (VTK's vtkZLibDataCompressor; ParaView reads them)"));
+  s.add(AttrSpec::boolean("compress").def("true").help(
+      "zlib-compress the arrays (vtkZLibDataCompressor, read by ParaView and VTK) with Int32 connectivity; "
+      "false: plain base64 binary with Int64 connectivity"));
   s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always .vtu"));
   s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
   s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));

@@ -1,5 +1,8 @@
-// VTK XML UnstructuredGrid (.vtu) reader: inline "ascii" and uncompressed base64 "binary"
-// DataArrays. The XML subset VTK writes is parsed here to keep the module free of XML libraries.
+// VTK XML UnstructuredGrid (.vtu) reader: inline "ascii" and base64 "binary" DataArrays, the
+// latter plain or zlib-compressed (compressor="vtkZLibDataCompressor"). The XML subset VTK
+// writes is parsed here to keep the module free of XML libraries.
+#include <zlib.h>
+
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -259,8 +262,11 @@ class VtuReader {
     const std::string* type = root.attribute("type");
     if (!type || *type != "UnstructuredGrid")
       fail(root.line, "VTKFile type " + (type ? quoted(*type) : std::string("(missing)")) + " is not supported; expected UnstructuredGrid");
-    if (const std::string* c = root.attribute("compressor"); c && !detail::trim(*c).empty())
-      fail(root.line, "compressed .vtu (compressor=\"" + *c + "\") is not supported; save without compression");
+    if (const std::string* c = root.attribute("compressor"); c && !detail::trim(*c).empty()) {
+      if (detail::trim(*c) != "vtkZLibDataCompressor")
+        fail(root.line, "compressed .vtu (compressor=\"" + *c + "\") is not supported; save without compression or with zlib");
+      zlib_ = true;
+    }
     if (const std::string* h = root.attribute("header_type")) {
       if (*h == "UInt64") header64_ = true;
       else if (*h != "UInt32") fail(root.line, "header_type " + quoted(*h) + " is not supported (UInt32 or UInt64)");
@@ -376,22 +382,78 @@ class VtuReader {
     return v;
   }
 
-  template <class T>
-  void readBinary(const XmlElement& a, ScalarType type, std::vector<T>& out, const std::string& what) const {
-    const std::vector<unsigned char> bytes = decodeBase64(a, what);
+  // The raw value bytes of a binary DataArray, whose base64 text holds a byte-count header and
+  // the values, or, compressed, VTK's block header and zlib blocks (see inflateBlocks).
+  std::vector<unsigned char> binaryPayload(const XmlElement& a, const std::string& what) const {
+    std::vector<unsigned char> bytes = decodeBase64(a, what);
     const size_t header = header64_ ? 8 : 4;
+    if (zlib_) return inflateBlocks(a, bytes, header, what);
     if (bytes.size() < header) fail(a.line, "the binary " + what + " DataArray is too short to hold its size header");
     const uint64_t size = loadUnsigned(bytes.data(), static_cast<int>(header));
     if (size != bytes.size() - header)
       fail(a.line, "the binary " + what + " DataArray declares " + std::to_string(size) + " bytes but holds " +
                        std::to_string(bytes.size() - header));
+    bytes.erase(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(header));
+    return bytes;
+  }
+
+  // VTK's compressed layout: header words [#blocks, block size, size of the last block if partial
+  // (0: full), compressed size of each block], then the zlib streams of the blocks back to back.
+  // VTK base64-encodes the header and the blocks as two runs; their decoded bytes just follow on.
+  std::vector<unsigned char> inflateBlocks(const XmlElement& a, const std::vector<unsigned char>& bytes, size_t word,
+                                           const std::string& what) const {
+    const std::string array = "the compressed " + what + " DataArray";
+    if (bytes.size() < 3 * word) fail(a.line, array + " is too short to hold its compression header");
+    const uint64_t numBlocks = loadUnsigned(bytes.data(), static_cast<int>(word));
+    const uint64_t blockSize = loadUnsigned(bytes.data() + word, static_cast<int>(word));
+    const uint64_t lastSize = loadUnsigned(bytes.data() + 2 * word, static_cast<int>(word));
+    if (numBlocks > (bytes.size() - 3 * word) / word)
+      fail(a.line, array + " declares " + std::to_string(numBlocks) + " blocks, more than its header can hold");
+    if (numBlocks > 0 && (blockSize == 0 || lastSize > blockSize))
+      fail(a.line, array + " has an invalid block size " + std::to_string(blockSize) + " (last block " + std::to_string(lastSize) + ")");
+    const size_t dataStart = (3 + numBlocks) * word;
+    uint64_t packedTotal = 0;
+    for (uint64_t b = 0; b < numBlocks; ++b) {
+      const uint64_t packed = loadUnsigned(bytes.data() + (3 + b) * word, static_cast<int>(word));
+      if (packed > bytes.size())
+        fail(a.line, array + " declares block " + std::to_string(b) + " of " + std::to_string(packed) + " bytes, more than the file holds");
+      packedTotal += packed;
+    }
+    if (packedTotal != bytes.size() - dataStart)
+      fail(a.line, array + " declares " + std::to_string(packedTotal) + " compressed bytes but holds " +
+                       std::to_string(bytes.size() - dataStart));
+    std::vector<unsigned char> out;
+    size_t at = dataStart;
+    for (uint64_t b = 0; b < numBlocks; ++b) {
+      const uint64_t packed = loadUnsigned(bytes.data() + (3 + b) * word, static_cast<int>(word));
+      const uint64_t size = b + 1 == numBlocks && lastSize != 0 ? lastSize : blockSize;
+      // zlib inflates at most about 1032:1; a larger claim is a corrupt header, not a reason to allocate.
+      if (size > 1032 * packed + 64)
+        fail(a.line, array + " declares block " + std::to_string(b) + " of " + std::to_string(size) + " bytes from only " +
+                         std::to_string(packed) + " compressed bytes");
+      const size_t o = out.size();
+      out.resize(o + size);
+      uLongf got = static_cast<uLongf>(size);
+      const int rc = uncompress(out.data() + o, &got, bytes.data() + at, static_cast<uLong>(packed));
+      if (rc != Z_OK || got != size)
+        fail(a.line, array + ": block " + std::to_string(b) + " does not inflate to its declared " + std::to_string(size) + " bytes (" +
+                         (rc == Z_OK ? std::to_string(got) + " bytes" : std::string("zlib: ") + zError(rc)) + ")");
+      at += packed;
+    }
+    return out;
+  }
+
+  template <class T>
+  void readBinary(const XmlElement& a, ScalarType type, std::vector<T>& out, const std::string& what) const {
+    const std::vector<unsigned char> bytes = binaryPayload(a, what);
+    const size_t size = bytes.size();
     if (size % type.bytes != 0)
       fail(a.line, "the binary " + what + " DataArray holds " + std::to_string(size) + " bytes, not a multiple of its " +
                        std::to_string(type.bytes) + "-byte values");
     const size_t count = size / type.bytes;
     out.reserve(count);
     for (size_t i = 0; i < count; ++i) {
-      const uint64_t raw = loadUnsigned(bytes.data() + header + i * type.bytes, type.bytes);
+      const uint64_t raw = loadUnsigned(bytes.data() + i * type.bytes, type.bytes);
       if (type.kind == Scalar::Float) {
         const double v = type.bytes == 4 ? static_cast<double>(std::bit_cast<float>(static_cast<uint32_t>(raw))) : std::bit_cast<double>(raw);
         if (!std::isfinite(v)) fail(a.line, "the " + what + " DataArray holds a value that is not finite (entry " + std::to_string(i) + ")");
@@ -451,6 +513,7 @@ class VtuReader {
   const std::string& path_;
   bool header64_ = false;
   bool bigEndian_ = false;
+  bool zlib_ = false;  // binary arrays are zlib-compressed blocks
 };
 
 }  // namespace

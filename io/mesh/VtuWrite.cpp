@@ -1,9 +1,12 @@
 // .vtu and .pvd output for ParaView, and the atomic file write every writer goes through.
 #include <fcntl.h>
 #include <unistd.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <climits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -40,20 +43,17 @@ std::string escapeAttribute(const std::string& s) {
   return out;
 }
 
-// Little-endian bytes of one DataArray, preceded by the UInt64 byte count VTK expects.
-// Bytes are assembled explicitly so the output does not depend on the host's byte order.
+// Little-endian bytes of one DataArray's values. Bytes are assembled explicitly so the output
+// does not depend on the host's byte order.
 class Block {
  public:
-  explicit Block(uint64_t payloadBytes) {
-    bytes_.reserve(8 + payloadBytes);
-    putUnsigned(payloadBytes, 8);
-  }
+  explicit Block(uint64_t payloadBytes) { bytes_.reserve(payloadBytes); }
   void putUnsigned(uint64_t v, int size) {
     char le[8];
     for (int k = 0; k < size; ++k) le[k] = static_cast<char>((v >> (8 * k)) & 0xFF);
     bytes_.append(le, static_cast<size_t>(size));
   }
-  void putInt64(int64_t v) { putUnsigned(static_cast<uint64_t>(v), 8); }
+  void putInt(int64_t v, int size) { putUnsigned(static_cast<uint64_t>(v), size); }
   void putFloat64(double v) {
     uint64_t bits;
     std::memcpy(&bits, &v, sizeof bits);
@@ -65,10 +65,9 @@ class Block {
   std::string bytes_;
 };
 
-void appendBase64(std::string& out, const std::string& bytes) {
+void appendBase64(std::string& out, const char* data, size_t n) {
   static const char kDigits[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
-  const size_t n = bytes.size();
+  const auto* p = reinterpret_cast<const unsigned char*>(data);
   size_t o = out.size();
   out.resize(o + (n + 2) / 3 * 4);
   size_t i = 0;
@@ -88,20 +87,74 @@ void appendBase64(std::string& out, const std::string& bytes) {
   }
 }
 
-void appendArray(std::string& out, const char* type, const std::string& name, int components, const Block& block) {
+void appendLittleEndian(std::string& out, uint64_t v) {
+  for (int k = 0; k < 8; ++k) out += static_cast<char>((v >> (8 * k)) & 0xFF);
+}
+
+// How the arrays of one file are encoded (header_type is always UInt64).
+struct Encoding {
+  const std::string& path;
+  const VtuWriteOptions& options;
+  std::string scratch;  // reused between arrays: header, then compressed blocks
+};
+
+// The base64 text of one array. Uncompressed: one base64 run of [UInt64 byte count][values].
+// Compressed (VTK's vtkZLibDataCompressor layout): the header [#blocks, block size, size of the
+// last block if partial (else 0), compressed size of each block] as one base64 run, then the
+// concatenated zlib streams of the blocks as a second run; VTK decodes the two separately.
+void appendEncoded(std::string& out, Encoding& e, const std::string& raw) {
+  std::string& buffer = e.scratch;
+  buffer.clear();
+  if (!e.options.compress) {
+    appendLittleEndian(buffer, raw.size());
+    buffer += raw;
+    appendBase64(out, buffer.data(), buffer.size());
+    return;
+  }
+  const size_t blockSize = static_cast<size_t>(e.options.compressionBlockSize);
+  const size_t numBlocks = (raw.size() + blockSize - 1) / blockSize;
+  appendLittleEndian(buffer, numBlocks);
+  appendLittleEndian(buffer, blockSize);
+  appendLittleEndian(buffer, raw.size() % blockSize);
+  const size_t headerBytes = 8 * (3 + numBlocks);
+  buffer.resize(headerBytes);
+  for (size_t b = 0; b < numBlocks; ++b) {
+    const size_t begin = b * blockSize, n = std::min(blockSize, raw.size() - begin);
+    const size_t at = buffer.size();
+    uLongf packed = compressBound(static_cast<uLong>(n));
+    buffer.resize(at + packed);
+    const int rc = compress2(reinterpret_cast<Bytef*>(buffer.data() + at), &packed, reinterpret_cast<const Bytef*>(raw.data() + begin),
+                             static_cast<uLong>(n), e.options.compressionLevel);
+    if (rc != Z_OK) fail(e.path, "cannot write: zlib compression failed (" + std::string(zError(rc)) + ")");
+    buffer.resize(at + packed);
+    for (int k = 0; k < 8; ++k) buffer[8 * (3 + b) + k] = static_cast<char>((uint64_t(packed) >> (8 * k)) & 0xFF);
+  }
+  appendBase64(out, buffer.data(), headerBytes);
+  appendBase64(out, buffer.data() + headerBytes, buffer.size() - headerBytes);
+}
+
+void appendArray(std::string& out, Encoding& e, const char* type, const std::string& name, int components, const Block& block) {
   out += "        <DataArray type=\"";
   out += type;
   out += "\" Name=\"" + escapeAttribute(name) + "\"";
   if (components != 1) out += " NumberOfComponents=\"" + std::to_string(components) + "\"";
   out += " format=\"binary\">";
-  appendBase64(out, block.bytes());
+  appendEncoded(out, e, block.bytes());
   out += "</DataArray>\n";
 }
 
-void appendData(std::string& out, const std::string& path, const char* section, const std::vector<DataArray>& arrays, Eigen::Index entries,
-                const char* noun) {
+void appendData(std::string& out, Encoding& e, const char* section, const std::vector<DataArray>& arrays) {
   if (arrays.empty()) return;
   out += std::string("      <") + section + ">\n";
+  for (const DataArray& a : arrays) {
+    Block block(8 * a.values.size());
+    for (double v : a.values) block.putFloat64(v);
+    appendArray(out, e, "Float64", a.name, a.components, block);
+  }
+  out += std::string("      </") + section + ">\n";
+}
+
+void checkData(const std::string& path, const std::vector<DataArray>& arrays, Eigen::Index entries, const char* noun) {
   for (const DataArray& a : arrays) {
     if (a.components < 1)
       fail(path, std::string("cannot write ") + noun + " data '" + a.name + "': NumberOfComponents must be at least 1, found " +
@@ -111,49 +164,61 @@ void appendData(std::string& out, const std::string& path, const char* section, 
       fail(path, std::string("cannot write ") + noun + " data '" + a.name + "': it has " + std::to_string(a.values.size()) +
                      " values, but " + std::to_string(a.components) + " components x " + std::to_string(entries) + " " + noun +
                      "s need " + std::to_string(expected));
-    Block block(8 * expected);
-    for (double v : a.values) block.putFloat64(v);
-    appendArray(out, "Float64", a.name, a.components, block);
   }
-  out += std::string("      </") + section + ">\n";
 }
 
 }  // namespace
 
 void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets,
-              const std::vector<DataArray>& pointData, const std::vector<DataArray>& cellData) {
+              const std::vector<DataArray>& pointData, const std::vector<DataArray>& cellData, const VtuWriteOptions& options) {
   const Eigen::Index numPoints = points.cols(), numCells = tets.cols();
   for (Eigen::Index c = 0; c < numCells; ++c)
     for (int k = 0; k < 4; ++k)
       if (tets(k, c) < 0 || tets(k, c) >= numPoints)
         fail(path, "cannot write: tetrahedron " + std::to_string(c) + " refers to node " + std::to_string(tets(k, c)) + ", but there are " +
                        std::to_string(numPoints) + " points");
+  checkData(path, pointData, numPoints, "point");
+  checkData(path, cellData, numCells, "cell");
+  if (options.compress) {
+    if (options.compressionLevel < 1 || options.compressionLevel > 9)
+      fail(path, "cannot write: the zlib compression level must be 1..9, found " + std::to_string(options.compressionLevel));
+    if (options.compressionBlockSize < 1024)
+      fail(path, "cannot write: the compression block size must be at least 1024 bytes, found " +
+                     std::to_string(options.compressionBlockSize));
+  }
+  Encoding e{path, options, {}};
 
   std::string out =
       "<?xml version=\"1.0\"?>\n"
-      "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+      "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"";
+  if (options.compress) out += " compressor=\"vtkZLibDataCompressor\"";
+  out +=
+      ">\n"
       "  <UnstructuredGrid>\n"
       "    <Piece NumberOfPoints=\"" +
       std::to_string(numPoints) + "\" NumberOfCells=\"" + std::to_string(numCells) + "\">\n";
-  appendData(out, path, "PointData", pointData, numPoints, "point");
-  appendData(out, path, "CellData", cellData, numCells, "cell");
+  appendData(out, e, "PointData", pointData);
+  appendData(out, e, "CellData", cellData);
 
   out += "      <Points>\n";
   Block xyz(24 * static_cast<uint64_t>(numPoints));
   for (Eigen::Index i = 0; i < numPoints; ++i)
     for (int k = 0; k < 3; ++k) xyz.putFloat64(points(k, i));
-  appendArray(out, "Float64", "Points", 3, xyz);
+  appendArray(out, e, "Float64", "Points", 3, xyz);
   out += "      </Points>\n      <Cells>\n";
-  Block connectivity(32 * static_cast<uint64_t>(numCells)), offsets(8 * static_cast<uint64_t>(numCells)),
+  // Node indices are ints; the last offset, 4 x #cells, decides whether Int32 holds them all.
+  const int indexBytes = options.int32Indices && 4 * static_cast<uint64_t>(numCells) <= INT32_MAX ? 4 : 8;
+  const char* indexType = indexBytes == 4 ? "Int32" : "Int64";
+  Block connectivity(4 * indexBytes * static_cast<uint64_t>(numCells)), offsets(indexBytes * static_cast<uint64_t>(numCells)),
       types(static_cast<uint64_t>(numCells));
   for (Eigen::Index c = 0; c < numCells; ++c) {
-    for (int k = 0; k < 4; ++k) connectivity.putInt64(tets(k, c));
-    offsets.putInt64(4 * (c + 1));
+    for (int k = 0; k < 4; ++k) connectivity.putInt(tets(k, c), indexBytes);
+    offsets.putInt(4 * (c + 1), indexBytes);
     types.putUnsigned(10, 1);  // VTK_TETRA
   }
-  appendArray(out, "Int64", "connectivity", 1, connectivity);
-  appendArray(out, "Int64", "offsets", 1, offsets);
-  appendArray(out, "UInt8", "types", 1, types);
+  appendArray(out, e, indexType, "connectivity", 1, connectivity);
+  appendArray(out, e, indexType, "offsets", 1, offsets);
+  appendArray(out, e, "UInt8", "types", 1, types);
   out +=
       "      </Cells>\n"
       "    </Piece>\n"
