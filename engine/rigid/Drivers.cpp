@@ -14,6 +14,16 @@ namespace viscera {
 
 namespace {
 
+// The rotation vector (axis x angle, shortest arc) of the rotation taking `from` to `to`, in the
+// world frame: to = exp(v) from.
+Eigen::Vector3d rotationVector(const Eigen::Quaterniond& from, const Eigen::Quaterniond& to) {
+  Eigen::Quaterniond dq = to * from.conjugate();
+  if (dq.w() < 0) dq.coeffs() *= -1;
+  const double s = dq.vec().norm();
+  if (!(s > 1e-12)) return dq.vec() * (2 / dq.w());  // small angle: angle / s -> 2 / w
+  return dq.vec() * (2 * std::atan2(s, dq.w()) / s);
+}
+
 class TrajectoryDriver : public Component, public Driver {
  public:
   using Component::Component;
@@ -40,11 +50,15 @@ class TrajectoryDriver : public Component, public Driver {
     body_->p0 = body_->p;
     body_->q0 = body_->q;
   }
+  // The pose at t and, as velocity, the mean over the step that ends at t (drive is called with
+  // each step's end time): velocity x dt is the step's displacement, which the friction
+  // constraints compare the tissue's motion with. Within a sample interval this is the
+  // interpolation's velocity; at a sample time it is that of the interval ending there.
   void drive(double t) override {
-    const double tt = t + offset_;
-    motion::Pose pose = traj_.sample(tt);
-    motion::Twist tw = traj_.twist(tt);
-    body_->setMotion(R_ * pose.p + T_, R_ * pose.q, R_ * tw.v, R_ * tw.w);
+    const double tt = t + offset_, h = scene().dt();
+    const motion::Pose pose = traj_.sample(tt), before = traj_.sample(tt - h);
+    body_->setMotion(R_ * pose.p + T_, R_ * pose.q, R_ * ((pose.p - before.p) / h),
+                     R_ * (rotationVector(before.q, pose.q) / h));
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "duration") out.values = {traj_.end() - offset_};
@@ -86,25 +100,17 @@ class LinearMovementConstraint : public Component, public Driver {
     relative_ = attrs_.boolean("relativeMovements");
     drive(scene().startTime());
   }
-  // Piecewise-linear displacement and rotation vector between keys, held outside them.
+  // Piecewise-linear displacement and rotation vector between keys, held outside them. The
+  // velocity is the mean over the step that ends at t (drive is called with each step's end
+  // time): velocity x dt is the step's displacement, which the friction constraints compare the
+  // tissue's motion with. Within a key interval this is the interval's rate; at a key time it is
+  // that of the interval ending there, not of the next one.
   void drive(double t) override {
-    Eigen::Vector3d d, r, vd = Eigen::Vector3d::Zero(), vr = Eigen::Vector3d::Zero();
-    const size_t n = times_.size();
-    if (t <= times_.front()) {
-      d = d_.front();
-      r = r_.front();
-    } else if (t >= times_.back()) {
-      d = d_.back();
-      r = r_.back();
-    } else {
-      size_t k = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin() - 1;
-      const double h = times_[k + 1] - times_[k], a = (t - times_[k]) / h;
-      d = (1 - a) * d_[k] + a * d_[k + 1];
-      r = (1 - a) * r_[k] + a * r_[k + 1];
-      vd = (d_[k + 1] - d_[k]) / h;
-      vr = (r_[k + 1] - r_[k]) / h;
-    }
-    (void)n;
+    Eigen::Vector3d d, r, dBefore, rBefore;
+    at(t, d, r);
+    const double h = scene().dt();
+    at(t - h, dBefore, rBefore);
+    const Eigen::Vector3d vd = (d - dBefore) / h, vr = (r - rBefore) / h;
     const Eigen::Quaterniond rot = r.norm() > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(r.norm(), r.normalized()))
                                                 : Eigen::Quaterniond::Identity();
     if (relative_) body_->setMotion(body_->p0 + d, rot * body_->q0, vd, vr);
@@ -112,6 +118,22 @@ class LinearMovementConstraint : public Component, public Driver {
   }
 
  private:
+  // Displacement and rotation vector at time t.
+  void at(double t, Eigen::Vector3d& d, Eigen::Vector3d& r) const {
+    if (t <= times_.front()) {
+      d = d_.front();
+      r = r_.front();
+    } else if (t >= times_.back()) {
+      d = d_.back();
+      r = r_.back();
+    } else {
+      const size_t k = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin() - 1;
+      const double a = (t - times_[k]) / (times_[k + 1] - times_[k]);
+      d = (1 - a) * d_[k] + a * d_[k + 1];
+      r = (1 - a) * r_[k] + a * r_[k + 1];
+    }
+  }
+
   RigidObject* body_ = nullptr;
   std::vector<double> times_;
   std::vector<Eigen::Vector3d> d_, r_;
@@ -127,8 +149,9 @@ void registerDrivers(Registry& r) {
     s.category = "driver";
     s.doc = "Moves a rigid body (the instrument) along a recorded trajectory: a CSV of t,x,y,z,qx,qy,qz,qw rows in "
             "the scene's units (header optional). Positions are interpolated linearly and orientations by slerp "
-            "between samples; the velocity is that of the interpolation. Before the first sample and after the last "
-            "the pose is held. The trajectory may be placed in the scene by `rotation` then `translation` (a "
+            "between samples. Before the first sample and after the last the pose is held. The body's velocity is the "
+            "mean over each time step (the step's displacement / dt), which is the interpolation's velocity within a "
+            "sample interval. The trajectory may be placed in the scene by `rotation` then `translation` (a "
             "registration transform).";
     s.add(AttrSpec::file("filename").req().help("trajectory CSV (t,x,y,z,qx,qy,qz,qw)"));
     s.add(AttrSpec::link("object").help("the Rigid3d MechanicalObject (default: the one in the node)"));
@@ -145,8 +168,8 @@ void registerDrivers(Registry& r) {
     s.category = "driver";
     s.doc = "Moves a rigid body through key frames (SOFA's LinearMovementConstraint): at each key time a "
             "displacement dx dy dz and a rotation vector rx ry rz (radians) from the initial pose; linear in "
-            "between, held outside. The angular velocity is the rate of the rotation vector (exact for a fixed "
-            "axis).";
+            "between, held outside. The velocity is the mean over each time step (the step's displacement / dt); the "
+            "angular velocity is the rate of the rotation vector (exact for a fixed axis).";
     s.add(AttrSpec::reals("keyTimes").req().unit(Dimension::time()).help("key times, increasing"));
     s.add(AttrSpec::reals("movements").req().help("6 numbers per key time: dx dy dz rx ry rz"));
     s.add(AttrSpec::ints("indices").def("0").help("the frame moved (a Rigid3d object has one: 0)"));
