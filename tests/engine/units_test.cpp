@@ -231,7 +231,7 @@ TEST(Units, SceneErrorsNameTheAttribute) {
 TEST(Units, GelPhantomSceneIsInKilopascals) {
   auto s = Scene::build(io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom_coarse.xml"));
   expectClose(youngOf(*s), 5000);
-  expectClose(s->dt(), 1.0 / 300.0);
+  expectClose(s->dt(), 1.0 / 150.0);
   EXPECT_EQ(s->units().str(), "mm g s");
 }
 
