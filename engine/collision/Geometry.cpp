@@ -71,6 +71,7 @@ int AabbTree::buildRange(std::vector<Eigen::Vector3d>& centres, int first, int c
 }
 
 void AabbTree::refit(const std::vector<Box>& boxes) {
+  boxes_ = boxes;
   // Children are created after their parent, so a reverse sweep sees children first.
   for (int id = static_cast<int>(nodes_.size()) - 1; id >= 0; --id) {
     NodeData& n = nodes_[id];
@@ -93,7 +94,8 @@ void AabbTree::query(const Box& q, const std::function<void(int)>& hit) const {
     const NodeData& n = nodes_[stack[--top]];
     if (!n.box.intersects(q)) continue;
     if (n.left < 0) {
-      for (int k = n.first; k < n.first + n.count; ++k) hit(prims_[k]);
+      for (int k = n.first; k < n.first + n.count; ++k)
+        if (boxes_[prims_[k]].intersects(q)) hit(prims_[k]);
     } else {
       stack[top++] = n.left;
       stack[top++] = n.right;

@@ -42,6 +42,7 @@ class AabbTree {
   int buildRange(std::vector<Eigen::Vector3d>& centres, int first, int count);
   std::vector<NodeData> nodes_;
   std::vector<int> prims_;
+  std::vector<Box> boxes_;  // primitive boxes of the last build or refit (leaves test each one)
 };
 
 }  // namespace viscera::geom
