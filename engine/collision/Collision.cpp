@@ -100,13 +100,7 @@ void SurfaceCollisionModel::init() {
   bvh_->tree.build(bvh_->boxes);
 }
 
-void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
-                                   std::vector<Contact>& out) {
-  const Eigen::Vector3d c = sphere.centre();
-  const double R = sphere.radius();
-  const double reach = R + s.alarmDistance;
-  // Broad phase: refit the hierarchy to the current positions, then visit only what the
-  // sphere's inflated box touches.
+void SurfaceCollisionModel::refit(const Eigen::Matrix3Xd& x) {
   const size_t n = bvh_->boxes.size();
   for (size_t i = 0; i < n; ++i) {
     geom::AabbTree::Box b;
@@ -115,6 +109,13 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
     bvh_->boxes[i] = b;
   }
   bvh_->tree.refit(bvh_->boxes);
+}
+
+void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
+                                   std::vector<Contact>& out) {
+  const Eigen::Vector3d c = sphere.centre();
+  const double R = sphere.radius();
+  const double reach = R + s.alarmDistance;
   const geom::AabbTree::Box query(c - Eigen::Vector3d::Constant(reach), c + Eigen::Vector3d::Constant(reach));
 
   auto make = [&](Feature f, std::initializer_list<std::pair<int, double>> nw, const Eigen::Vector3d& q,
@@ -344,6 +345,9 @@ void CollisionPipeline::detect() {
   for (SurfaceCollisionModel* s : surfaces_) {
     if (!s->active()) continue;
     std::vector<Contact> found;
+    // Broad phase: the hierarchy follows the surface once per step; each sphere then visits only
+    // the triangles its inflated box touches.
+    s->refit(s->mstate().x);
     for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->mstate().x, settings_, found);
     s->setContacts(std::move(found), settings_);
   }

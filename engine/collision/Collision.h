@@ -93,7 +93,9 @@ class SurfaceCollisionModel : public Component, public ForceField {
   bool active() const { return active_; }
   void setActive(bool a) { active_ = a; }
 
-  // Contacts with `sphere` for the positions x (the tissue at the step start).
+  // Fits the bounding-volume hierarchy to positions x; call before detect() when x changed.
+  void refit(const Eigen::Matrix3Xd& x);
+  // Contacts with `sphere` for the positions x (the tissue at the step start), as fitted.
   void detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
               std::vector<Contact>& out);
   // The contacts of the current step, with the response they get.
