@@ -194,10 +194,13 @@ class GenericConstraintSolver : public Component, public ConstraintSolver {
       const Eigen::Vector3d slip = (p - c.p0) - h * c.sphere->body().pointVelocity(at);
       dfree[i] = Eigen::Vector3d(c.gap(s.x), t1.dot(slip), t2.dot(slip));
     }
-    // Delassus blocks W_ij = R_i (sum_a sum_b w_a w_b C(a, b)) R_j^T.
+    // Delassus blocks W_ij = R_i (sum_a sum_b w_a w_b C(a, b)) R_j^T. C(a, b) comes from node b's
+    // column, so j is the outer loop: contact j's (at most three) columns are fetched once for all
+    // i; with i outside, once the contact nodes outnumbered the bounded column cache, every column
+    // was recomputed for every i (O(m^2) solves).
     Eigen::MatrixXd W(3 * m, 3 * m);
-    for (int i = 0; i < m; ++i)
-      for (int j = 0; j < m; ++j) {
+    for (int j = 0; j < m; ++j)
+      for (int i = 0; i < m; ++i) {
         Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
         for (int a = 0; a < cs[i].count; ++a)
           for (int b = 0; b < cs[j].count; ++b) Cij += cs[i].w[a] * cs[j].w[b] * cc.block(cs[i].nodes[a], cs[j].nodes[b]);

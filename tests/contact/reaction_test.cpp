@@ -48,7 +48,7 @@ std::string sceneXml(const Case& s) {
   x << "  <Node name=\"instrument\">\n"
     << "    <MechanicalObject name=\"tool\" template=\"Rigid3d\" position=\"20 20 15.3 0 0 0 1\"/>\n";
   if (s.dynamic)
-    x << "    <LinearMovementConstraint keyTimes=\"0 0.5 0.7 1.7\" movements=\"0 0 0 0 0 0  0 0 -2.1 0 0 0  0 0 -2.1 0 0 0  "
+    x << "    <LinearMovementConstraint keyTimes=\"0 0.3 0.4 1.0\" movements=\"0 0 0 0 0 0  0 0 -2.1 0 0 0  0 0 -2.1 0 0 0  "
          "8 0 -2.1 0 0 0.5\"/>\n";
   else
     x << "    <LinearMovementConstraint keyTimes=\"0 10 20\" movements=\"0 0 0 0 0 0  0 0 -2.1 0 0 0  4 0 -2.1 0 0 0\"/>\n";
@@ -105,7 +105,7 @@ TEST(ContactReaction, InstrumentWrenchIsMinusTissueContactForces) {
     const CollisionPipeline& pipe = *run.sim->pipeline();
     int withContact = 0;
     double maxForce = 0, maxTorque = 0;
-    for (int k = 0; k < 170; ++k) {
+    for (int k = 0; k < 100; ++k) {
       auto bad = run.sim->step();
       ASSERT_FALSE(bad) << bad->str();
       Vector3d sum = Vector3d::Zero(), torque = Vector3d::Zero();
@@ -137,7 +137,7 @@ TEST(ContactReaction, InstrumentWrenchIsMinusTissueContactForces) {
                 maxForce, maxTorque, secondsSince(t0));
     // Not vacuous: the sphere is in contact for most of the run, and friction while sliding gives
     // the sphere a torque about its centre.
-    EXPECT_GT(withContact, 120);
+    EXPECT_GT(withContact, 90);
     EXPECT_GT(maxForce, 1000.0);  // uN: ~1 mN and more at 2 mm into a 5 kPa gel
     if (s.mu > 0) {
       EXPECT_GT(maxTorque, 0.05 * radius * maxForce);
@@ -151,11 +151,15 @@ TEST(ContactReaction, InstrumentWrenchIsMinusTissueContactForces) {
 // of a body sum to zero over all its nodes, sum_fixed(-f_int) = sum_free(f_int), and equilibrium of
 // the free nodes (f_int + f_contact = 0) makes that -sum(f_contact).
 //
-// Tolerance: 1e-6 of the contact force. With the constraint response the correction moves the
-// tissue by (-K)^-1 F exactly (linear model, CHOLMOD), so the balance is limited by the free
-// motion's Newton tolerance (residual 1e-10 of the initial one) and round-off; with the penalty
-// response, by the Newton tolerance. Both are many orders below 1e-6; the projected Gauss-Seidel
-// tolerance does not enter (whatever forces it returns are applied and reported alike).
+// Tolerance: 1e-8 of the contact force. The balance is only as good as the equilibrium. With the
+// penalty response it is the StaticSolver's Newton tolerance: it stops at a residual
+// ||r|| <= 1e-10 ||r0||, r0 being the out-of-balance force at the step start (of the order of the
+// contact force), and the sum of the residuals over the ~700 free nodes is at most sqrt(700) ||r||,
+// ~3e-9 |F|. With the constraint response the correction moves the tissue by (-K)^-1 F exactly
+// (linear model, CHOLMOD) from the free motion, itself a Newton equilibrium to the same tolerance;
+// the projected Gauss-Seidel tolerance does not enter, since whatever forces it returns are both
+// applied to the tissue and reported. The measured imbalance is ~1e-13 (a linear problem: Newton
+// is exact after one iteration, up to round-off).
 TEST(ContactReaction, StaticContactForcesBalanceFixedNodeReactions) {
   for (const Case& s : {Case{Response::Penalty, 0, false}, Case{Response::Constraint, 0, false},
                          Case{Response::Constraint, 0.5, false}}) {
@@ -182,11 +186,11 @@ TEST(ContactReaction, StaticContactForcesBalanceFixedNodeReactions) {
       const double rel = (reaction + contact).norm() / contact.norm();
       worst = std::max(worst, rel);
       ++checked;
-      EXPECT_LE(rel, 1e-6) << "step " << k + 1 << ": contact " << contact.transpose() << ", reaction " << reaction.transpose();
+      EXPECT_LE(rel, 1e-8) << "step " << k + 1 << ": contact " << contact.transpose() << ", reaction " << reaction.transpose();
       // The elastic forces sum to zero over the body (rigid translations do not strain it).
       EXPECT_LE((reaction + freeSum).norm(), 1e-9 * contact.norm()) << "step " << k + 1;
       // The instrument feels the reaction of the supports through the tissue.
-      EXPECT_LE((tool.force - reaction).norm(), 1e-6 * contact.norm()) << "step " << k + 1;
+      EXPECT_LE((tool.force - reaction).norm(), 1e-8 * contact.norm()) << "step " << k + 1;
       maxTangential = std::max(maxTangential, std::hypot(contact.x(), contact.y()) / std::abs(contact.z()));
       if (k == 9 || k == 19)
         std::printf("  %-28s step %2d: contact on tissue (%.5g %.5g %.5g) uN, support reaction (%.5g %.5g %.5g) uN, |sum| / |F| %.1e\n",
