@@ -89,25 +89,23 @@ void SurfaceCollisionModel::init() {
   for (int i = 0; i < X.cols(); ++i)
     if (!vertexNeighbours_[i].empty()) verts_.push_back(i);
   bvh_ = std::make_shared<Bvh>();
-  const size_t n = kind_ == Kind::Points ? verts_.size() : tris_.size();
-  bvh_->boxes.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    geom::AabbTree::Box b;
-    if (kind_ == Kind::Points) b.extend(X.col(verts_[i]));
-    else for (int k : tris_[i]) b.extend(X.col(k));
-    bvh_->boxes[i] = b;
-  }
+  fitBoxes(X);
   bvh_->tree.build(bvh_->boxes);
 }
 
-void SurfaceCollisionModel::refit(const Eigen::Matrix3Xd& x) {
-  const size_t n = bvh_->boxes.size();
+void SurfaceCollisionModel::fitBoxes(const Eigen::Matrix3Xd& x) {
+  const size_t n = kind_ == Kind::Points ? verts_.size() : tris_.size();
+  bvh_->boxes.resize(n);
   for (size_t i = 0; i < n; ++i) {
     geom::AabbTree::Box b;
     if (kind_ == Kind::Points) b.extend(x.col(verts_[i]));
     else for (int k : tris_[i]) b.extend(x.col(k));
     bvh_->boxes[i] = b;
   }
+}
+
+void SurfaceCollisionModel::refit(const Eigen::Matrix3Xd& x) {
+  fitBoxes(x);
   bvh_->tree.refit(bvh_->boxes);
 }
 

@@ -114,6 +114,8 @@ class SurfaceCollisionModel : public Component, public ForceField {
 
  private:
   struct Bvh;
+  // One box per primitive (triangle, or vertex for point models) at positions x.
+  void fitBoxes(const Eigen::Matrix3Xd& x);
   MechanicalObject* state_ = nullptr;
   Kind kind_ = Kind::Triangles;
   bool active_ = true;
