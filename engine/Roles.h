@@ -110,6 +110,15 @@ class Driver {
   virtual void drive(double t) = 0;
 };
 
+// Carries the state of a mechanical object to another representation at the end of each step
+// (a finer visual surface embedded in the tetrahedra). Mappings run after the solvers and before
+// the observers, in scene order.
+class Mapping {
+ public:
+  virtual ~Mapping() = default;
+  virtual void apply() = 0;
+};
+
 // Reads the state at the end of a step (exporters, recorders, metrics).
 class Observer {
  public:

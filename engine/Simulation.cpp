@@ -14,6 +14,7 @@ Simulation::Simulation(Scene& scene) : scene_(scene) {
   if (!pipeline_ && (!scene_.all<SphereCollisionModel>().empty() || !scene_.all<SurfaceCollisionModel>().empty()))
     scene_.addNote("note: the scene has collision models but no CollisionPipeline: nothing collides");
   solvers_ = scene_.all<OdeSolver>();
+  mappings_ = scene_.all<Mapping>();
   observers_ = scene_.all<Observer>();
   time_ = scene_.startTime();
 }
@@ -21,6 +22,7 @@ Simulation::Simulation(Scene& scene) : scene_(scene) {
 void Simulation::begin() {
   if (begun_) return;
   begun_ = true;
+  for (Mapping* m : mappings_) m->apply();
   for (Observer* o : observers_) o->begin(time_);
 }
 
@@ -40,6 +42,7 @@ std::optional<Diverged> Simulation::step() {
   ++steps_;
   // Accumulate the time from the step count so that long runs do not drift.
   time_ = scene_.startTime() + steps_ * dt;
+  for (Mapping* m : mappings_) m->apply();
   for (Observer* o : observers_) o->observe(time_, steps_);
   return std::nullopt;
 }

@@ -40,6 +40,7 @@ class Simulation {
   CollisionPipeline* pipeline_ = nullptr;
   ConstraintSolver* constraints_ = nullptr;
   std::vector<OdeSolver*> solvers_;
+  std::vector<Mapping*> mappings_;
   std::vector<Observer*> observers_;
   double time_ = 0;
   int steps_ = 0;

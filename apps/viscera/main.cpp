@@ -12,6 +12,11 @@
 #include <memory>
 #include <sstream>
 
+#include "apps/viscera/CameraCommand.h"
+#include "apps/viscera/CloudCommand.h"
+#include "apps/viscera/DistanceCommand.h"
+#include "apps/viscera/MeshCommand.h"
+#include "apps/viscera/RegisterCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
@@ -268,8 +273,14 @@ int main(int argc, char** argv) {
   auto* comps = app.add_subcommand("components", "list components and their attributes");
   comps->add_option("name", compName, "one component");
 
-  std::function<int()> trajectoryAction;
-  addTrajectoryCommand(app, trajectoryAction);
+  // Each command module sets `action` when its subcommand is given.
+  std::function<int()> action;
+  addTrajectoryCommand(app, action);
+  addCloudCommand(app, action);
+  addRegisterCommand(app, action);
+  addCameraCommand(app, action);
+  addDistanceCommand(app, action);
+  addMeshCommand(app, action);
 
   try {
     app.parse(argc, argv);
@@ -281,7 +292,7 @@ int main(int argc, char** argv) {
     if (*run) return cmdRun(ro);
     if (*check) return cmdCheck(checkScene);
     if (*comps) return cmdComponents(compName);
-    if (trajectoryAction) return trajectoryAction();
+    if (action) return action();
   } catch (const Error& e) {
     std::cerr << "error: " << e.what() << "\n";
     return kExitInvalidInput;

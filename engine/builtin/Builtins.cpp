@@ -15,6 +15,8 @@ void registerStaticSolver(Registry&);
 void registerDrivers(Registry&);
 void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
+void registerMappings(Registry&);
+void registerObservation(Registry&);
 
 void registerBuiltins(Registry& r) {
   registerMechanicalObject(r);
@@ -29,9 +31,11 @@ void registerBuiltins(Registry& r) {
   registerDrivers(r);
   registerCollision(r);
   registerConstraintContact(r);
+  registerMappings(r);
+  registerObservation(r);
 
   const char* drawing = "drawing only";
-  for (const char* t : {"VisualStyle", "OglModel", "VisualModel", "OglSceneFrame", "LightManager", "DirectionalLight",
+  for (const char* t : {"VisualStyle", "OglSceneFrame", "LightManager", "DirectionalLight",
                         "SpotLight", "InteractiveCamera", "Camera", "BackgroundSetting", "DefaultVisualManagerLoop",
                         "VisualGrid", "LineAxis"})
     r.addIgnored(t, drawing);

@@ -50,6 +50,11 @@ struct VtuWriteOptions {
 // Writes an unstructured grid of tetrahedra (and optionally no cells at all) as .vtu.
 void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets,
               const std::vector<DataArray>& pointData, const std::vector<DataArray>& cellData, const VtuWriteOptions& options = {});
+// Writes a polygonal data set (.vtp): points with triangles (3 x #triangles, may be empty) and,
+// when `vertexCells` is set, one vertex cell per point (how a point cloud shows in ParaView).
+// Options as for writeVtu; point data only.
+void writeVtp(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 3, Eigen::Dynamic>& triangles,
+              bool vertexCells, const std::vector<DataArray>& pointData, const VtuWriteOptions& options = {});
 // Writes a .pvd collection: (time, file relative to the .pvd) pairs.
 void writePvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries);
 

@@ -227,6 +227,67 @@ void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
   writeFileAtomic(path, out);
 }
 
+void writeVtp(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 3, Eigen::Dynamic>& triangles,
+              bool vertexCells, const std::vector<DataArray>& pointData, const VtuWriteOptions& options) {
+  const Eigen::Index numPoints = points.cols(), numTris = triangles.cols();
+  for (Eigen::Index c = 0; c < numTris; ++c)
+    for (int k = 0; k < 3; ++k)
+      if (triangles(k, c) < 0 || triangles(k, c) >= numPoints)
+        fail(path, "cannot write: triangle " + std::to_string(c) + " refers to point " + std::to_string(triangles(k, c)) +
+                       ", but there are " + std::to_string(numPoints) + " points");
+  for (Eigen::Index i = 0; i < numPoints; ++i)
+    if (!points.col(i).allFinite()) fail(path, "cannot write: point " + std::to_string(i) + " is not finite");
+  checkData(path, pointData, numPoints, "point");
+  if (options.compress && (options.compressionLevel < 1 || options.compressionLevel > 9 || options.compressionBlockSize < 1024))
+    fail(path, "cannot write: bad compression settings (level 1..9, block size >= 1024 bytes)");
+  Encoding e{path, options, {}};
+  const Eigen::Index numVerts = vertexCells ? numPoints : 0;
+  std::string out =
+      "<?xml version=\"1.0\"?>\n"
+      "<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\"";
+  if (options.compress) out += " compressor=\"vtkZLibDataCompressor\"";
+  out += ">\n  <PolyData>\n    <Piece NumberOfPoints=\"" + std::to_string(numPoints) + "\" NumberOfVerts=\"" +
+         std::to_string(numVerts) + "\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"" + std::to_string(numTris) +
+         "\">\n";
+  appendData(out, e, "PointData", pointData);
+  out += "      <Points>\n";
+  Block xyz(24 * static_cast<uint64_t>(numPoints));
+  for (Eigen::Index i = 0; i < numPoints; ++i)
+    for (int k = 0; k < 3; ++k) xyz.putFloat64(points(k, i));
+  appendArray(out, e, "Float64", "Points", 3, xyz);
+  out += "      </Points>\n";
+  const bool small = options.int32Indices && 3 * static_cast<uint64_t>(std::max(numTris, numVerts)) <= INT32_MAX;
+  const int indexBytes = small ? 4 : 8;
+  const char* indexType = small ? "Int32" : "Int64";
+  if (numVerts > 0) {
+    Block connectivity(indexBytes * static_cast<uint64_t>(numVerts)), offsets(indexBytes * static_cast<uint64_t>(numVerts));
+    for (Eigen::Index i = 0; i < numVerts; ++i) {
+      connectivity.putInt(i, indexBytes);
+      offsets.putInt(i + 1, indexBytes);
+    }
+    out += "      <Verts>\n";
+    appendArray(out, e, indexType, "connectivity", 1, connectivity);
+    appendArray(out, e, indexType, "offsets", 1, offsets);
+    out += "      </Verts>\n";
+  }
+  if (numTris > 0) {
+    Block connectivity(3 * indexBytes * static_cast<uint64_t>(numTris)), offsets(indexBytes * static_cast<uint64_t>(numTris));
+    for (Eigen::Index c = 0; c < numTris; ++c) {
+      for (int k = 0; k < 3; ++k) connectivity.putInt(triangles(k, c), indexBytes);
+      offsets.putInt(3 * (c + 1), indexBytes);
+    }
+    out += "      <Polys>\n";
+    appendArray(out, e, indexType, "connectivity", 1, connectivity);
+    appendArray(out, e, indexType, "offsets", 1, offsets);
+    out += "      </Polys>\n";
+  }
+  out +=
+      "    </Piece>\n"
+      "  </PolyData>\n"
+      "</VTKFile>\n";
+  writeFileAtomic(path, out);
+}
+
 void writePvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries) {
   std::string out =
       "<?xml version=\"1.0\"?>\n"

@@ -1,0 +1,7 @@
+#include "apps/viscera/MeshCommand.h"
+
+namespace viscera {
+
+void addMeshCommand(CLI::App&, std::function<int()>&) {}
+
+}  // namespace viscera

@@ -1,0 +1,7 @@
+#include "engine/core/Registry.h"
+
+namespace viscera {
+
+void registerMappings(Registry&) {}
+
+}  // namespace viscera

@@ -1,0 +1,63 @@
+// Exact closest points on a triangle surface: a bounding-volume hierarchy over the triangles,
+// built once and refitted when the surface deforms. Used by the cloud -> surface distance, ICP
+// registration and anything else that asks "where on the tissue surface is this point nearest?".
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <limits>
+#include <vector>
+
+#include "engine/Roles.h"
+
+namespace viscera::obs {
+
+using TriangleList = Eigen::Matrix<int, 3, Eigen::Dynamic>;  // 3 x #triangles
+
+// The faces of the tetrahedra that belong to one tetrahedron only, oriented outwards (right-hand
+// rule, normal away from the tetrahedron's fourth node at positions x), in a deterministic order.
+TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x);
+
+class SurfaceIndex {
+ public:
+  struct Hit {
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();  // closest point on the surface
+    int triangle = -1;                                // -1 when nothing lies within the search radius
+    std::array<double, 3> w{0, 0, 0};                 // barycentric weights on that triangle
+    int region = 0;                                   // as closestOnTriangle: 0 face, 1-3 edge, 4-6 vertex
+    double distance2 = std::numeric_limits<double>::infinity();
+  };
+
+  SurfaceIndex() = default;
+  SurfaceIndex(const Eigen::Matrix3Xd& points, const TriangleList& triangles) { build(points, triangles); }
+  // Builds the hierarchy (median splits on the longest axis, up to 4 triangles a leaf).
+  void build(const Eigen::Matrix3Xd& points, const TriangleList& triangles);
+  // New positions for the same points and triangles: refits the boxes in O(n).
+  void update(const Eigen::Matrix3Xd& points);
+
+  // The closest surface point to p among points closer than sqrt(maxDistance2). `hint`, a
+  // triangle likely to be close (the previous query's, for coherent queries), tightens the
+  // search from the start; it never changes the answer.
+  Hit closest(const Eigen::Vector3d& p, double maxDistance2 = std::numeric_limits<double>::infinity(), int hint = -1) const;
+
+  const Eigen::Matrix3Xd& points() const { return points_; }
+  const TriangleList& triangles() const { return tris_; }
+  int numTriangles() const { return static_cast<int>(tris_.cols()); }
+  // Unit normal of triangle t at the current positions (zero for a degenerate triangle).
+  Eigen::Vector3d normal(int t) const;
+
+ private:
+  struct NodeData {
+    Eigen::Vector3d lo, hi;
+    int left = -1, right = -1;  // children; -1 for a leaf
+    int first = 0, count = 0;   // leaf: range in order_
+  };
+  int buildRange(std::vector<Eigen::Vector3d>& centres, int first, int count);
+  void refitNode(int n);
+  Eigen::Matrix3Xd points_;
+  TriangleList tris_;
+  std::vector<NodeData> nodes_;
+  std::vector<int> order_;
+};
+
+}  // namespace viscera::obs
