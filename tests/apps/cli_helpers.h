@@ -50,8 +50,15 @@ inline std::ostream& operator<<(std::ostream& o, const RunResult& r) {
 inline RunResult runViscera(const std::vector<std::string>& args) {
   TempDir io;
   std::string cmd = shellQuote(VISCERA_BINARY);
-  for (const auto& a : args) cmd += " " + shellQuote(a);
-  cmd += " >" + shellQuote(io / "stdout") + " 2>" + shellQuote(io / "stderr") + " </dev/null";
+  for (const auto& a : args) {
+    cmd += ' ';
+    cmd += shellQuote(a);
+  }
+  cmd += " >";
+  cmd += shellQuote(io / "stdout");
+  cmd += " 2>";
+  cmd += shellQuote(io / "stderr");
+  cmd += " </dev/null";
   RunResult r;
   int status = std::system(cmd.c_str());
   r.rc = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
