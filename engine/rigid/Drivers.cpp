@@ -8,6 +8,7 @@
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/rigid/RigidObject.h"
+#include "io/scene/Transform.h"
 #include "motion/Trajectory.h"
 
 namespace viscera {
@@ -42,10 +43,24 @@ class TrajectoryDriver : public Component, public Driver {
     offset_ = attrs_.real("timeOffset");
     const auto& r = attrs_.reals("rotation");
     const auto& t = attrs_.reals("translation");
-    R_ = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-         Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
-         Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
-    T_ = Eigen::Vector3d(t[0], t[1], t[2]);
+    const Eigen::Quaterniond placeR = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                                      Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                                      Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
+    const Eigen::Vector3d placeT(t[0], t[1], t[2]);
+    // The robot -> scene transform file comes first, then rotation, then translation:
+    // x_scene = R_place (R_file x + t_file) + t_place.
+    RigidTransform file = RigidTransform::Identity();
+    if (attrs_.isSet("transform")) {
+      const std::string tpath = scene().resolvePath(attrs_.str("transform"));
+      try {
+        file = readTransform(tpath);
+      } catch (const Error& e) {
+        throw Error(e.where(), std::string(e.what()).substr(e.where().known() ? e.where().str().size() + 2 : 0) +
+                                   " (read for " + attrs_.loc("transform").str() + ": TrajectoryDriver.transform)");
+      }
+    }
+    R_ = placeR * Eigen::Quaterniond(file.linear());
+    T_ = placeR * file.translation() + placeT;
     drive(scene().startTime());
     body_->p0 = body_->p;
     body_->q0 = body_->q;
@@ -151,13 +166,16 @@ void registerDrivers(Registry& r) {
             "the scene's units (header optional). Positions are interpolated linearly and orientations by slerp "
             "between samples. Before the first sample and after the last the pose is held. The body's velocity is the "
             "mean over each time step (the step's displacement / dt), which is the interpolation's velocity within a "
-            "sample interval. The trajectory may be placed in the scene by `rotation` then `translation` (a "
-            "registration transform).";
+            "sample interval. The trajectory may be placed in the scene by a `transform` file (robot -> scene, e.g. "
+            "from `viscera register points`), then `rotation`, then `translation`: x_scene = R_rot (R_file x + t_file) + "
+            "t; orientations are turned by R_rot R_file.";
     s.add(AttrSpec::file("filename").req().help("trajectory CSV (t,x,y,z,qx,qy,qz,qw)"));
     s.add(AttrSpec::link("object").help("the Rigid3d MechanicalObject (default: the one in the node)"));
     s.add(AttrSpec::real("timeOffset").def("0").unit(Dimension::time()).help("trajectory time = scene time + timeOffset"));
+    s.add(AttrSpec::file("transform").help("rigid transform file (4 x 4 matrix, robot -> scene, translation in the scene's "
+                                            "length unit) applied to every pose first, before `rotation` and `translation`"));
     s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the trajectory, after the rotation"));
-    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z, applied to the trajectory"));
+    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z, applied to the trajectory after `transform`"));
     s.factory = [](BuildContext& c) { return std::make_unique<TrajectoryDriver>(c); };
     r.add(std::move(s));
   }

@@ -72,7 +72,8 @@ std::string formatTransform(const RigidTransform& T, const std::string& comment)
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) {
       std::snprintf(buf, sizeof buf, "%.17g", r == 3 ? (c == 3 ? 1.0 : 0.0) : M(r, c));
-      out += (c ? " " : "") + std::string(buf);
+      if (c) out += ' ';
+      out += buf;
     }
     out += "\n";
   }
