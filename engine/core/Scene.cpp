@@ -22,7 +22,7 @@ Attributes parseAttributes(const ElementDesc& el, const ComponentSpec& spec, con
     v.spec = &a;
     v.text = a.defaultValue;
     v.loc = el.loc;
-    if (!a.defaultValue.empty() && a.kind != AttrKind::Link) parseAttrText(a, a.defaultValue, UnitSystem(), v);
+    if (!a.defaultValue.empty() && a.kind != AttrKind::Link) parseAttrText(a, a.defaultValue, units, v);
     attrs.values()[a.name] = std::move(v);
   }
   for (const auto& given : el.attrs) {
