@@ -1,5 +1,6 @@
 // VTKExporter: writes the MechanicalObject of its node as a .vtu series with a .pvd index
-// (ParaView), with point fields displacement and velocity and the cell field vonMises.
+// (ParaView), with point fields displacement and velocity and the cell field vonMises; in a node
+// with a visual model (OglModel/VisualModel), that surface as a .vtp series with displacement.
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -7,6 +8,7 @@
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
+#include "engine/mapping/VisualModel.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/mesh/Mesh.h"
 
@@ -18,13 +20,28 @@ class VTKExporter : public Component, public Observer {
  public:
   using Component::Component;
   void init() override {
-    state_ = &contextState(*this);
-    fem_ = node().find<TetrahedronFEMForceField>();
-    if (fem_) scene().initComponent(*fem_);
     every_ = static_cast<int>(attrs_.integer("exportEveryNumberOfSteps"));
     // Compressed frames also store connectivity and offsets as Int32; uncompressed ones keep the
     // plain Int64 layout.
     options_.compress = options_.int32Indices = attrs_.boolean("compress");
+    // Placed beside a visual model in a node without a MechanicalObject (SOFA's visual child
+    // node), the exporter writes that surface, unless `mstate` names a MechanicalObject to write.
+    if (!attrs_.isSet("mstate") && !node().find<MechanicalObject>()) visual_ = node().find<VisualModel>();
+    if (visual_) {
+      scene().initComponent(*visual_);
+      // The surface's points carry only their displacement (the default for it).
+      std::istringstream in(attrs_.isSet("fields") ? attrs_.str("fields") : "displacement");
+      for (std::string f; in >> f;) {
+        if (f != "displacement")
+          throw error("fields", "'" + f + "' is not a field of the visual surface '" + visual_->name() +
+                                    "' (it has displacement only)");
+        fields_.push_back(f);
+      }
+      return;
+    }
+    state_ = &contextState(*this);
+    fem_ = node().find<TetrahedronFEMForceField>();
+    if (fem_) scene().initComponent(*fem_);
     std::istringstream in(attrs_.str("fields"));
     for (std::string f; in >> f;) {
       if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force")
@@ -34,7 +51,10 @@ class VTKExporter : public Component, public Observer {
     }
   }
   void begin(double t) override {
-    base_ = scene().outputPath(attrs_.isSet("filename") ? attrs_.str("filename") : name());
+    // Unnamed, a surface exporter takes the visual model's name so that it does not share its
+    // .pvd with the body's exporter.
+    const std::string fallback = visual_ ? visual_->name() : name();
+    base_ = scene().outputPath(attrs_.isSet("filename") ? attrs_.str("filename") : fallback);
     std::filesystem::path dir = std::filesystem::path(base_).parent_path();
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
@@ -50,6 +70,28 @@ class VTKExporter : public Component, public Observer {
 
  private:
   void write(double t, int step) {
+    char num[32];
+    std::snprintf(num, sizeof num, visual_ ? "_%06d.vtp" : "_%06d.vtu", step);
+    const std::string file = base_ + num;
+    if (visual_) writeSurface(file);
+    else writeVolume(file);
+    written_.push_back({t, std::filesystem::path(file).filename().string()});
+    lastStep_ = step;
+    // The index is rewritten each time so that an interrupted run still opens in ParaView.
+    io::writePvd(base_ + ".pvd", written_);
+  }
+
+  void writeSurface(const std::string& file) {
+    const VisualModel& v = *visual_;
+    std::vector<io::DataArray> pd;
+    if (!fields_.empty()) {
+      const Eigen::Matrix3Xd d = v.x - v.x0;
+      pd.push_back({"displacement", 3, std::vector<double>(d.data(), d.data() + d.size())});
+    }
+    io::writeVtp(file, v.x, v.triangles, false, pd, options_);
+  }
+
+  void writeVolume(const std::string& file) {
     const MechanicalObject& s = *state_;
     std::vector<io::DataArray> pd, cd;
     for (const auto& f : fields_) {
@@ -61,19 +103,13 @@ class VTKExporter : public Component, public Observer {
       Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(s.x - s.x0) : f == "velocity" ? s.v : s.f;
       pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
     }
-    char num[32];
-    std::snprintf(num, sizeof num, "_%06d.vtu", step);
-    const std::string file = base_ + num;
     static const TetList none;
     io::writeVtu(file, s.x, fem_ ? fem_->tetrahedra() : none, pd, cd, options_);
-    written_.push_back({t, std::filesystem::path(file).filename().string()});
-    lastStep_ = step;
-    // The index is rewritten each time so that an interrupted run still opens in ParaView.
-    io::writePvd(base_ + ".pvd", written_);
   }
 
   MechanicalObject* state_ = nullptr;
   TetrahedronFEMForceField* fem_ = nullptr;
+  VisualModel* visual_ = nullptr;  // set when writing a visual surface instead of the state
   int every_ = 1;
   io::VtuWriteOptions options_;
   int lastStep_ = -1;
@@ -89,19 +125,21 @@ void registerVTKExporter(Registry& r) {
   s.name = "VTKExporter";
   s.category = "output";
   s.doc = "Writes the node's MechanicalObject (with the tetrahedra of its FEM force field) as a .vtu series "
-          "and a .pvd index for ParaView. Files are <filename>_<step>.vtu in the output folder (--out).";
-  s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name)"));
+          "and a .pvd index for ParaView. Files are <filename>_<step>.vtu in the output folder (--out). In a node "
+          "with an OglModel/VisualModel and no MechanicalObject (a visual child node; `mstate` not set), writes that "
+          "surface instead: <filename>_<step>.vtp with its triangles and the point field displacement.";
+  s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name; beside a visual model, that model's name)"));
   s.add(AttrSpec::integer("exportEveryNumberOfSteps").def("1").atLeast(0).help("write every N steps (0: only at begin/end)"));
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
   s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
-  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises"));
+  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises (a visual surface: displacement only, its default)"));
   s.add(AttrSpec::boolean("compress").def("true").help(
       "zlib-compress the arrays (vtkZLibDataCompressor, read by ParaView and VTK) with Int32 connectivity; "
       "false: plain base64 binary with Int64 connectivity"));
-  s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always .vtu"));
+  s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always VTK XML (.vtu, .vtp for a visual surface)"));
   s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
   s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));
-  s.add(AttrSpec::boolean("triangles").def("false").help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::boolean("triangles").def("false").help("accepted for SOFA compatibility; a visual surface is written with its triangles"));
   s.add(AttrSpec::boolean("tetras").def("true").help("accepted for SOFA compatibility; tetrahedra are written"));
   s.add(AttrSpec::boolean("overwrite").def("false").help("accepted for SOFA compatibility"));
   s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));

@@ -62,4 +62,9 @@ void writePvd(const std::string& path, const std::vector<std::pair<double, std::
 // readers never see a half-written file. Throws viscera::Error on failure.
 void writeFileAtomic(const std::string& path, const std::string& content);
 
+// Writes a Gmsh MSH 2.2 ASCII file (atomically): the mesh's triangles (element type 2), when it
+// has any, then its tetrahedra (type 4), each with physical and elementary tag 1; nodes numbered
+// from 1 in column order.
+void writeGmsh(const std::string& path, const VolumeMesh& mesh);
+
 }  // namespace viscera::io

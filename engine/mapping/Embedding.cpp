@@ -1,0 +1,196 @@
+#include "engine/mapping/Embedding.h"
+
+#include <Eigen/LU>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <vector>
+
+#include "engine/collision/Geometry.h"
+
+namespace viscera {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Barycentric coordinates are computed with round-off; a point on a face shared by two
+// tetrahedra, or on the mesh boundary, may come out at -1e-16 for both. Coordinates down to this
+// value count as inside (the point then sits within 1e-9 of an element size of the tetrahedron).
+constexpr double kInsideTolerance = 1e-9;
+
+// The faces of tetrahedron (n0, n1, n2, n3): face f is opposite node f.
+constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+// What a tetrahedron needs to give barycentric coordinates: its first node and the inverse of
+// the 3 x 3 matrix whose columns are its edges from that node.
+struct TetFrame {
+  Eigen::Vector3d origin;
+  Eigen::Matrix3d inverse;
+  bool valid = false;  // false for a degenerate tetrahedron
+};
+
+Eigen::Vector4d barycentric(const TetFrame& f, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d l = f.inverse * (p - f.origin);
+  return Eigen::Vector4d(1.0 - l.sum(), l[0], l[1], l[2]);
+}
+
+}  // namespace
+
+int TetEmbedding::extrapolatedCount() const {
+  int n = 0;
+  for (int p = 0; p < size(); ++p) n += element[p] >= 0 && distance[p] > 0;
+  return n;
+}
+
+int TetEmbedding::unplacedCount() const {
+  int n = 0;
+  for (int p = 0; p < size(); ++p) n += element[p] < 0;
+  return n;
+}
+
+double distanceToTetrahedron(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                             const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+  Eigen::Matrix3d m;
+  m << b - a, c - a, d - a;
+  const double det = m.determinant();
+  if (det != 0) {
+    const Eigen::Vector3d l = m.inverse() * (p - a);
+    if (l.minCoeff() >= 0 && l.sum() <= 1) return 0.0;
+  }
+  const std::array<const Eigen::Vector3d*, 4> v = {&a, &b, &c, &d};
+  double best = kInf;
+  for (const auto& face : kFace) {
+    const auto q = geom::closestOnTriangle(p, *v[face[0]], *v[face[1]], *v[face[2]]);
+    best = std::min(best, (p - q.point).norm());
+  }
+  return best;
+}
+
+std::pair<int, double> nearestTetrahedron(const Eigen::Matrix3Xd& nodes, const TetList& tets, const Eigen::Vector3d& p) {
+  std::pair<int, double> best{-1, kInf};
+  for (int e = 0; e < tets.cols(); ++e) {
+    const double d = distanceToTetrahedron(p, nodes.col(tets(0, e)), nodes.col(tets(1, e)), nodes.col(tets(2, e)),
+                                           nodes.col(tets(3, e)));
+    if (d < best.second) best = {e, d};
+  }
+  return best;
+}
+
+double meanEdgeLength(const Eigen::Matrix3Xd& nodes, const TetList& tets) {
+  if (tets.cols() == 0) return 0.0;
+  double sum = 0;
+  for (int e = 0; e < tets.cols(); ++e)
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) sum += (nodes.col(tets(i, e)) - nodes.col(tets(j, e))).norm();
+  return sum / (6.0 * static_cast<double>(tets.cols()));
+}
+
+TetEmbedding embedInTetrahedra(const Eigen::Matrix3Xd& nodes, const TetList& tets, const Eigen::Matrix3Xd& points,
+                               double maxDistance) {
+  const int numTets = static_cast<int>(tets.cols());
+  const int numPoints = static_cast<int>(points.cols());
+  TetEmbedding out;
+  out.nodes = TetList::Zero(4, numPoints);
+  out.weights = Eigen::Matrix4Xd::Zero(4, numPoints);
+  out.element = Eigen::VectorXi::Constant(numPoints, -1);
+  out.distance = Eigen::VectorXd::Constant(numPoints, kInf);
+  if (numTets == 0 || numPoints == 0) return out;
+
+  // Per tetrahedron: its box for the hierarchy and its barycentric frame. A tetrahedron is
+  // degenerate when its volume is negligible against the cube of its longest edge.
+  std::vector<geom::AabbTree::Box> boxes(numTets);
+  std::vector<TetFrame> frames(numTets);
+  for (int e = 0; e < numTets; ++e) {
+    const Eigen::Vector3d a = nodes.col(tets(0, e));
+    Eigen::Matrix3d m;
+    m << nodes.col(tets(1, e)) - a, nodes.col(tets(2, e)) - a, nodes.col(tets(3, e)) - a;
+    for (int k = 0; k < 4; ++k) boxes[e].extend(nodes.col(tets(k, e)));
+    const double longest = boxes[e].diagonal().norm();
+    frames[e].origin = a;
+    frames[e].valid = std::abs(m.determinant()) > 1e-12 * longest * longest * longest;
+    if (frames[e].valid) frames[e].inverse = m.inverse();
+  }
+  geom::AabbTree tree;
+  tree.build(boxes);
+
+  // Points within round-off of a box still look for their tetrahedron in it.
+  const Eigen::Vector3d pad = Eigen::Vector3d::Constant(kInsideTolerance * meanEdgeLength(nodes, tets));
+  const Eigen::Vector3d reach = Eigen::Vector3d::Constant(maxDistance);
+  for (int p = 0; p < numPoints; ++p) {
+    const Eigen::Vector3d x = points.col(p);
+    int best = -1;
+    Eigen::Vector4d bestW;
+    double bestMin = -kInf;
+    tree.query(geom::AabbTree::Box(x - pad, x + pad), [&](int e) {
+      if (!frames[e].valid) return;
+      const Eigen::Vector4d w = barycentric(frames[e], x);
+      const double lowest = w.minCoeff();
+      if (lowest >= -kInsideTolerance && (lowest > bestMin || (lowest == bestMin && e < best))) {
+        best = e;
+        bestW = w;
+        bestMin = lowest;
+      }
+    });
+    double dist = 0.0;
+    if (best < 0 && maxDistance > 0) {
+      // Outside every tetrahedron: the nearest one within reach, extrapolated.
+      dist = kInf;
+      tree.query(geom::AabbTree::Box(x - reach, x + reach), [&](int e) {
+        if (!frames[e].valid) return;
+        const double d = distanceToTetrahedron(x, nodes.col(tets(0, e)), nodes.col(tets(1, e)), nodes.col(tets(2, e)),
+                                               nodes.col(tets(3, e)));
+        if (d <= maxDistance && (d < dist || (d == dist && e < best))) {
+          best = e;
+          dist = d;
+        }
+      });
+      if (best >= 0) bestW = barycentric(frames[best], x);
+    }
+    if (best < 0) continue;
+    out.element[p] = best;
+    out.distance[p] = dist;
+    out.nodes.col(p) = tets.col(best);
+    out.weights.col(p) = bestW;
+  }
+  return out;
+}
+
+void applyEmbedding(const TetEmbedding& embedding, const Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& out) {
+  const int n = embedding.size();
+  out.resize(3, n);
+  for (int p = 0; p < n; ++p) {
+    const auto& idx = embedding.nodes.col(p);
+    const auto& w = embedding.weights.col(p);
+    out.col(p) = w[0] * x.col(idx[0]) + w[1] * x.col(idx[1]) + w[2] * x.col(idx[2]) + w[3] * x.col(idx[3]);
+  }
+}
+
+TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x) {
+  // Sorted node triple -> (number of tetrahedra sharing the face, the face oriented outwards of
+  // the first one).
+  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
+  for (int e = 0; e < tets.cols(); ++e) {
+    for (int f = 0; f < 4; ++f) {
+      std::array<int, 3> tri = {tets(kFace[f][0], e), tets(kFace[f][1], e), tets(kFace[f][2], e)};
+      const Eigen::Vector3d a = x.col(tri[0]);
+      const Eigen::Vector3d normal = (x.col(tri[1]) - a).cross(x.col(tri[2]) - a);
+      if (normal.dot(x.col(tets(f, e)) - a) > 0) std::swap(tri[1], tri[2]);
+      std::array<int, 3> key = tri;
+      std::sort(key.begin(), key.end());
+      auto [it, fresh] = faces.try_emplace(key, 1, tri);
+      if (!fresh) ++it->second.first;
+    }
+  }
+  std::vector<std::array<int, 3>> kept;
+  for (const auto& [key, face] : faces)
+    if (face.first == 1) kept.push_back(face.second);
+  TriangleList out(3, static_cast<Eigen::Index>(kept.size()));
+  for (size_t t = 0; t < kept.size(); ++t)
+    for (int k = 0; k < 3; ++k) out(k, static_cast<Eigen::Index>(t)) = kept[t][k];
+  return out;
+}
+
+}  // namespace viscera

@@ -1,0 +1,176 @@
+#include "engine/mapping/VisualModel.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/surface/SurfaceMesh.h"
+
+namespace viscera {
+
+namespace {
+
+// Checks that every triangle refers to one of `numPoints` vertices.
+void checkTriangles(const Component& c, const std::string& attr, const TriangleList& tris, Eigen::Index numPoints,
+                    const std::string& what) {
+  for (Eigen::Index t = 0; t < tris.cols(); ++t)
+    for (int k = 0; k < 3; ++k)
+      if (tris(k, t) < 0 || tris(k, t) >= numPoints)
+        throw c.error(attr, what + ": triangle " + std::to_string(t) + " refers to vertex " + std::to_string(tris(k, t)) +
+                                ", but there are " + std::to_string(numPoints) + " vertices");
+}
+
+Eigen::Matrix3Xd pointsOf(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::Matrix3Xd>(v.data(), 3, static_cast<Eigen::Index>(v.size() / 3));
+}
+
+TriangleList trianglesOf(const std::vector<double>& v) {
+  TriangleList t(3, static_cast<Eigen::Index>(v.size() / 3));
+  for (size_t i = 0; i < v.size(); ++i) t(static_cast<Eigen::Index>(i % 3), static_cast<Eigen::Index>(i / 3)) = static_cast<int>(v[i]);
+  return t;
+}
+
+}  // namespace
+
+void VisualModel::init() {
+  checkVec3Template(*this);
+  const int sources = attrs_.isSet("filename") + attrs_.isSet("src") + attrs_.isSet("position");
+  if (sources > 1) throw error("give one of `filename`, `src` or `position` (with `triangles`), not several");
+  if (attrs_.isSet("triangles") && !attrs_.isSet("position")) throw error("triangles", "needs `position`");
+  if (attrs_.isSet("filename")) fromFile();
+  else if (attrs_.isSet("src")) fromSource();
+  else if (attrs_.isSet("position")) fromAttributes();
+  else fromContextBoundary();
+  if (x0.cols() == 0) throw error("has no vertices");
+  applyPlacement(attrs_, x0);
+  x = x0;
+}
+
+void VisualModel::fromFile() {
+  const std::string path = scene().resolvePath(attrs_.str("filename"));
+  if (!std::filesystem::exists(path)) throw error("filename", "surface file '" + path + "' does not exist");
+  io::SurfaceMesh s;
+  try {
+    s = io::readSurface(path);
+  } catch (const Error& e) {
+    throw error("filename", e.what());
+  }
+  x0 = s.points;
+  triangles = s.triangles;
+  checkTriangles(*this, "filename", triangles, x0.cols(), path);
+}
+
+void VisualModel::fromSource() {
+  Component* src = linkedComponent("src");
+  FieldValue pos, tri;
+  if (!src->field("position", pos) || pos.values.empty())
+    throw error("src", "'" + src->name() + "' (" + src->typeName() + ") has no positions");
+  x0 = pointsOf(pos.values);
+  if (src->field("triangles", tri) && !tri.values.empty()) {
+    triangles = trianglesOf(tri.values);
+  } else if (auto* topo = dynamic_cast<Topology*>(src); topo && topo->tetrahedra().cols() > 0) {
+    triangles = boundaryTriangles(topo->tetrahedra(), x0);
+  } else {
+    throw error("src", "'" + src->name() + "' (" + src->typeName() + ") has neither triangles nor tetrahedra");
+  }
+  checkTriangles(*this, "src", triangles, x0.cols(), "'" + src->name() + "'");
+}
+
+void VisualModel::fromAttributes() {
+  if (!attrs_.isSet("triangles")) throw error("triangles", "is required with `position`");
+  x0 = pointsOf(linkedReals("position"));
+  triangles = trianglesOf(linkedReals("triangles"));
+  checkTriangles(*this, "triangles", triangles, x0.cols(), "triangles");
+}
+
+void VisualModel::fromContextBoundary() {
+  // As SOFA's OglModel without a file: the surface of the body above. All of its nodes are kept
+  // (the interior ones belong to no triangle) so that vertex i is node i.
+  MechanicalObject& state = contextState(*this);
+  const TetList* tets = tetrahedraAbove(scene(), node());
+  if (!tets)
+    throw error("has no `filename`, `src` or `position`, and no tetrahedra in its node or above give a boundary surface");
+  if (tets->maxCoeff() >= state.size())
+    throw error("the tetrahedra above refer to node " + std::to_string(tets->maxCoeff()) + ", but MechanicalObject '" +
+                state.name() + "' has " + std::to_string(state.size()) + " nodes");
+  x0 = state.x0;
+  triangles = boundaryTriangles(*tets, x0);
+}
+
+bool VisualModel::field(const std::string& name, FieldValue& out) const {
+  if (name == "position") out.values.assign(x.data(), x.data() + x.size());
+  else if (name == "restPosition") out.values.assign(x0.data(), x0.data() + x0.size());
+  else if (name == "triangles") out.values.assign(triangles.data(), triangles.data() + triangles.size());
+  else return false;
+  return true;
+}
+
+void VisualModel::setDriver(const Component& mapping) {
+  if (driver_ && driver_ != &mapping)
+    throw mapping.error("output", "'" + name() + "' is already the output of " + driver_->typeName() + " '" +
+                                      driver_->name() + "'; give each visual model one mapping");
+  driver_ = &mapping;
+}
+
+const TetList* tetrahedraAbove(Scene& scene, const Node& from) {
+  for (const Node* n = &from; n; n = n->parent()) {
+    const auto& comps = n->components();
+    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
+      auto* t = dynamic_cast<Topology*>(it->get());
+      if (!t) continue;
+      scene.initComponent(**it);
+      if (t->tetrahedra().cols() > 0) return &t->tetrahedra();
+    }
+  }
+  return nullptr;
+}
+
+void checkVec3Template(const Component& c) {
+  const std::string& t = c.attrs().str("template");
+  std::vector<std::string> parts;
+  for (size_t start = 0;;) {
+    const size_t comma = t.find(',', start);
+    parts.push_back(t.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  static const std::vector<std::string> known = {"Vec3d", "Vec3f", "Vec3", "ExtVec3f", "ExtVec3d", "ExtVec3"};
+  for (const auto& p : parts)
+    if (parts.size() > 2 || std::find(known.begin(), known.end(), p) == known.end())
+      throw c.error("template", "'" + t + "' is not supported (vector types Vec3d, Vec3f, ExtVec3f; as a pair "
+                                "input,output for a mapping)");
+}
+
+void registerVisualModel(Registry& r) {
+  ComponentSpec s;
+  s.name = "OglModel";
+  s.aliases = {"VisualModel"};
+  s.category = "visual";
+  s.doc = "A visual surface: triangles moved every step by a BarycentricMapping or IdentityMapping in the same node "
+          "(usually a child of the deformable body's node), written by a VTKExporter in that node as a .vtp series. "
+          "Vertices and triangles come from `filename` (.obj, .stl, .off, .ply), `src` (a loader's position and "
+          "triangles; a tetrahedral one gives its boundary), `position` and `triangles`, or else the boundary "
+          "surface of the tetrahedra above (all nodes of the MechanicalObject there, vertex i = node i). "
+          "Placement: scale3d, then rotation, then translation. No effect on the mechanics.";
+  s.add(AttrSpec::string("template").def("Vec3d").help("coordinate type (Vec3d, Vec3f, ExtVec3f); computed in double precision"));
+  s.add(AttrSpec::file("filename").alias("fileMesh").help("surface file (.obj, .stl, .off, .ply), relative to the scene file"));
+  s.add(AttrSpec::link("src").help("a loader (or other component) with position and triangles fields"));
+  s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("vertex positions x y z ..."));
+  s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("vertex indices, three per triangle (with `position`)"));
+  s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the vertices"));
+  s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
+  s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").alias("scale").help("scale factors applied first"));
+  const char* drawingOnly = "accepted for SOFA scenes; drawing only, not used";
+  s.add(AttrSpec::string("color").help(drawingOnly));
+  s.add(AttrSpec::string("material").help(drawingOnly));
+  s.add(AttrSpec::string("texturename").help(drawingOnly));
+  for (const char* flag : {"useNormals", "updateNormals", "computeTangents", "handleDynamicTopology"})
+    s.add(AttrSpec::boolean(flag).help(drawingOnly));
+  s.factory = [](BuildContext& c) { return std::make_unique<VisualModel>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

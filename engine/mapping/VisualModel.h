@@ -1,0 +1,55 @@
+// A visual surface (SOFA's OglModel / VisualModel): triangles whose vertices a mapping
+// (BarycentricMapping, IdentityMapping) moves with a deformable body every step. It takes no part
+// in the mechanics; exporters write it (VTKExporter in its node writes a .vtp series).
+#pragma once
+
+#include <Eigen/Core>
+
+#include "engine/core/Component.h"
+#include "engine/mapping/Embedding.h"
+
+namespace viscera {
+
+class Registry;
+
+class VisualModel : public Component {
+ public:
+  explicit VisualModel(BuildContext& ctx) : Component(ctx) {}
+  // Rest positions and triangles from one of `filename` (a surface file), `src` (a loader's
+  // position and triangles), `position` with `triangles`, or, when none is given, the boundary
+  // surface of the tetrahedra above (all the nodes of the MechanicalObject there, so that an
+  // IdentityMapping fits). Then the placement (scale3d, rotation, translation).
+  void init() override;
+  // Fields for links: position (current), restPosition, triangles.
+  bool field(const std::string& name, FieldValue& out) const override;
+
+  int size() const { return static_cast<int>(x.cols()); }
+  // Records the mapping that moves this surface; a second one is an error (two mappings would
+  // overwrite each other's result every step).
+  void setDriver(const Component& mapping);
+
+  Eigen::Matrix3Xd x;      // current positions, 3 x #vertices
+  Eigen::Matrix3Xd x0;     // rest positions (placement applied), 3 x #vertices
+  TriangleList triangles;  // 3 x #triangles, 0-based vertex indices
+
+ private:
+  void fromFile();
+  void fromSource();
+  void fromAttributes();
+  void fromContextBoundary();
+  const Component* driver_ = nullptr;
+};
+
+// The tetrahedra of the last topology with tetrahedra in node `from` or, failing that, in the
+// nearest ancestor that has one (as the force fields find theirs); initialises the topologies it
+// looks at. nullptr if there is none.
+const TetList* tetrahedraAbove(Scene& scene, const Node& from);
+
+// Checks a `template` attribute of a visual model or mapping: one or two (input,output) vector
+// types of three coordinates (Vec3d, Vec3f, Vec3, ExtVec3f, ExtVec3d); SOFA's float variants run in
+// double precision. Throws the component's error otherwise.
+void checkVec3Template(const Component& c);
+
+void registerVisualModel(Registry& r);
+
+}  // namespace viscera
