@@ -1,4 +1,5 @@
 #include "engine/collision/Collision.h"
+#include "io/mesh/Mesh.h"
 
 #include <algorithm>
 #include <cmath>
@@ -46,27 +47,14 @@ void SurfaceCollisionModel::init() {
   Topology& topo = contextTopology(*this, "topology", false);
   const TetList& T = topo.tetrahedra();
   const Eigen::Matrix3Xd& X = state_->x0;
+  for (Eigen::Index e = 0; e < T.cols(); ++e)
+    for (int k = 0; k < 4; ++k)
+      if (T(k, e) < 0 || T(k, e) >= X.cols())
+        throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(T(k, e)) +
+                    " but the MechanicalObject has " + std::to_string(X.cols()) + " nodes");
   // Boundary faces: those that belong to one tetrahedron, oriented away from its fourth node.
-  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
-  static const int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  for (int e = 0; e < T.cols(); ++e) {
-    for (int f = 0; f < 4; ++f) {
-      std::array<int, 3> tri = {T(kFace[f][0], e), T(kFace[f][1], e), T(kFace[f][2], e)};
-      for (int k : tri)
-        if (k < 0 || k >= X.cols())
-          throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(k) +
-                      " but the MechanicalObject has " + std::to_string(X.cols()) + " nodes");
-      const int opp = T(f, e);
-      const Eigen::Vector3d nrm = (X.col(tri[1]) - X.col(tri[0])).cross(X.col(tri[2]) - X.col(tri[0]));
-      if (nrm.dot(X.col(opp) - X.col(tri[0])) > 0) std::swap(tri[1], tri[2]);
-      std::array<int, 3> key = tri;
-      std::sort(key.begin(), key.end());
-      auto [it, fresh] = faces.try_emplace(key, 1, tri);
-      if (!fresh) ++it->second.first;
-    }
-  }
-  for (const auto& [key, v] : faces)
-    if (v.first == 1) tris_.push_back(v.second);
+  const io::TriangleList boundary = io::boundaryTriangles(T, X);
+  for (Eigen::Index t = 0; t < boundary.cols(); ++t) tris_.push_back({boundary(0, t), boundary(1, t), boundary(2, t)});
   if (tris_.empty()) throw error("the topology has no boundary triangles");
   std::map<std::pair<int, int>, int> edgeId;
   triEdges_.resize(tris_.size());

@@ -168,29 +168,5 @@ void applyEmbedding(const TetEmbedding& embedding, const Eigen::Matrix3Xd& x, Ei
   }
 }
 
-TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x) {
-  // Sorted node triple -> (number of tetrahedra sharing the face, the face oriented outwards of
-  // the first one).
-  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
-  for (int e = 0; e < tets.cols(); ++e) {
-    for (int f = 0; f < 4; ++f) {
-      std::array<int, 3> tri = {tets(kFace[f][0], e), tets(kFace[f][1], e), tets(kFace[f][2], e)};
-      const Eigen::Vector3d a = x.col(tri[0]);
-      const Eigen::Vector3d normal = (x.col(tri[1]) - a).cross(x.col(tri[2]) - a);
-      if (normal.dot(x.col(tets(f, e)) - a) > 0) std::swap(tri[1], tri[2]);
-      std::array<int, 3> key = tri;
-      std::sort(key.begin(), key.end());
-      auto [it, fresh] = faces.try_emplace(key, 1, tri);
-      if (!fresh) ++it->second.first;
-    }
-  }
-  std::vector<std::array<int, 3>> kept;
-  for (const auto& [key, face] : faces)
-    if (face.first == 1) kept.push_back(face.second);
-  TriangleList out(3, static_cast<Eigen::Index>(kept.size()));
-  for (size_t t = 0; t < kept.size(); ++t)
-    for (int k = 0; k < 3; ++k) out(k, static_cast<Eigen::Index>(t)) = kept[t][k];
-  return out;
-}
 
 }  // namespace viscera

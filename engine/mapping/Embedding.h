@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 
 #include "engine/Roles.h"
+#include "io/mesh/Mesh.h"
 
 namespace viscera {
 
@@ -50,9 +51,7 @@ std::pair<int, double> nearestTetrahedron(const Eigen::Matrix3Xd& nodes, const T
 // Mean length of the tetrahedra's edges (each edge counted once per tetrahedron); 0 if none.
 double meanEdgeLength(const Eigen::Matrix3Xd& nodes, const TetList& tets);
 
-// The faces of the tetrahedra (4 x #tets) that belong to one tetrahedron only (3 x #faces), each
-// oriented outwards (right-hand rule, normal away from the tetrahedron's fourth node at positions
-// x, 3 x #nodes), in a deterministic order.
-TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x);
+// The outward boundary faces of tetrahedra (io/mesh/Mesh.h).
+using io::boundaryTriangles;
 
 }  // namespace viscera

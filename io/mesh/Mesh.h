@@ -27,6 +27,12 @@ VolumeMesh readVtu(const std::string& path);
 // Returns the orientation sign (+1 if volumes are positive, -1 if all negative).
 int checkTetMesh(const VolumeMesh& mesh, const std::string& source);
 
+// The faces that belong to exactly one tetrahedron (tets: 4 x #tets), oriented outwards (right-hand
+// rule, normal away from the tetrahedron's fourth node at points: 3 x #nodes), as 3 x #faces, in
+// the order of their sorted node triples. Tetrahedra may be of either orientation.
+using TriangleList = Eigen::Matrix<int, 3, Eigen::Dynamic>;  // 3 x #triangles
+TriangleList boundaryTriangles(const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets, const Eigen::Matrix3Xd& points);
+
 // A named data array on points or cells: `components` values per entry, entry-major.
 struct DataArray {
   std::string name;

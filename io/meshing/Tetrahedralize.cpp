@@ -330,44 +330,6 @@ VolumeMesh tetrahedralize(const SurfaceMesh& surface, const TetOptions& options,
   return mesh;
 }
 
-Eigen::Matrix<int, 3, Eigen::Dynamic> boundaryTriangles(const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets, const Eigen::Matrix3Xd& points) {
-  // Face k of a tetrahedron is the one opposite its node k.
-  static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  struct Face {
-    std::array<int, 3> sorted;
-    int tet, local;
-  };
-  std::vector<Face> faces;
-  faces.reserve(4 * static_cast<size_t>(tets.cols()));
-  for (Eigen::Index e = 0; e < tets.cols(); ++e)
-    for (int k = 0; k < 4; ++k) {
-      std::array<int, 3> v = {tets(kFace[k][0], e), tets(kFace[k][1], e), tets(kFace[k][2], e)};
-      std::sort(v.begin(), v.end());
-      faces.push_back({v, static_cast<int>(e), k});
-    }
-  std::vector<size_t> order(faces.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return faces[a].sorted < faces[b].sorted; });
-  std::vector<char> boundary(faces.size(), 0);
-  for (size_t i = 0; i < order.size();) {
-    size_t j = i + 1;
-    while (j < order.size() && faces[order[j]].sorted == faces[order[i]].sorted) ++j;
-    if (j == i + 1) boundary[order[i]] = 1;
-    i = j;
-  }
-  std::vector<int> out;
-  for (size_t f = 0; f < faces.size(); ++f) {
-    if (!boundary[f]) continue;
-    const int e = faces[f].tet, k = faces[f].local;
-    std::array<int, 3> tri = {tets(kFace[k][0], e), tets(kFace[k][1], e), tets(kFace[k][2], e)};
-    // Outwards: the opposite node lies behind the face.
-    const Eigen::Vector3d a = points.col(tri[0]), b = points.col(tri[1]), c = points.col(tri[2]);
-    if ((b - a).cross(c - a).dot(points.col(tets(k, e)) - a) > 0) std::swap(tri[1], tri[2]);
-    out.insert(out.end(), tri.begin(), tri.end());
-  }
-  return Eigen::Map<const Eigen::Matrix<int, 3, Eigen::Dynamic>>(out.data(), 3, static_cast<Eigen::Index>(out.size() / 3));
-}
-
 TetQuality measureTetMesh(const VolumeMesh& mesh) {
   TetQuality q;
   q.nodes = mesh.points.cols();

@@ -38,10 +38,6 @@ struct TetOptions {
 // self-intersecting one, a pair of crossing triangles by their vertices) or an unusable result.
 VolumeMesh tetrahedralize(const SurfaceMesh& surface, const TetOptions& options, const std::string& source);
 
-// Faces that belong to exactly one tetrahedron, oriented outwards (3 x #faces), in the order of
-// the tetrahedra and their faces. Tetrahedra may be of either orientation.
-Eigen::Matrix<int, 3, Eigen::Dynamic> boundaryTriangles(const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets, const Eigen::Matrix3Xd& points);
-
 // Size and shape of the tetrahedra of a mesh (their orientation does not matter; a degenerate
 // tetrahedron has an infinite radius-edge ratio).
 struct TetQuality {
