@@ -1,35 +1,11 @@
 #include "engine/observation/SurfaceIndex.h"
 
 #include <algorithm>
-#include <map>
 #include <numeric>
 
 #include "engine/collision/Geometry.h"
 
 namespace viscera::obs {
-
-TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x) {
-  static const int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-  std::map<std::array<int, 3>, std::pair<int, std::array<int, 3>>> faces;
-  for (Eigen::Index e = 0; e < tets.cols(); ++e)
-    for (int f = 0; f < 4; ++f) {
-      std::array<int, 3> tri = {tets(kFace[f][0], e), tets(kFace[f][1], e), tets(kFace[f][2], e)};
-      const int opp = tets(f, e);
-      const Eigen::Vector3d n = (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0]));
-      if (n.dot(x.col(opp) - x.col(tri[0])) > 0) std::swap(tri[1], tri[2]);
-      std::array<int, 3> key = tri;
-      std::sort(key.begin(), key.end());
-      auto [it, fresh] = faces.try_emplace(key, 1, tri);
-      if (!fresh) ++it->second.first;
-    }
-  std::vector<std::array<int, 3>> kept;
-  for (const auto& [key, v] : faces)
-    if (v.first == 1) kept.push_back(v.second);
-  TriangleList out(3, static_cast<Eigen::Index>(kept.size()));
-  for (size_t t = 0; t < kept.size(); ++t)
-    for (int k = 0; k < 3; ++k) out(k, static_cast<Eigen::Index>(t)) = kept[t][k];
-  return out;
-}
 
 void SurfaceIndex::build(const Eigen::Matrix3Xd& points, const TriangleList& triangles) {
   points_ = points;

@@ -9,14 +9,14 @@
 #include <vector>
 
 #include "engine/Roles.h"
+#include "io/mesh/Mesh.h"
 
 namespace viscera::obs {
 
 using TriangleList = Eigen::Matrix<int, 3, Eigen::Dynamic>;  // 3 x #triangles
 
-// The faces of the tetrahedra that belong to one tetrahedron only, oriented outwards (right-hand
-// rule, normal away from the tetrahedron's fourth node at positions x), in a deterministic order.
-TriangleList boundaryTriangles(const TetList& tets, const Eigen::Matrix3Xd& x);
+// The outward boundary faces of tetrahedra (io/mesh/Mesh.h).
+using io::boundaryTriangles;
 
 class SurfaceIndex {
  public:
