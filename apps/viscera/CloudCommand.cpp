@@ -1,6 +1,7 @@
 // `viscera cloud prep`: preprocess a capture (one cloud file, or a sequence folder / index CSV)
 // with prepareCloud and write the result; `viscera cloud info`: describe a cloud file or sequence.
 #include "apps/viscera/CloudCommand.h"
+#include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
 
@@ -23,6 +24,9 @@
 namespace viscera {
 namespace {
 
+using cli::words;
+using cli::jsonString;
+
 namespace fs = std::filesystem;
 using namespace viscera::cloud;
 
@@ -37,21 +41,6 @@ struct InfoCommandOptions {
   std::string in;
   double nameTimeScale = 1.0;
 };
-
-// Words separated by blanks and/or commas.
-std::vector<std::string> words(const std::string& s) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : s) {
-    if (c == ',' || c == ' ' || c == '\t') {
-      if (!cur.empty()) out.push_back(cur), cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  if (!cur.empty()) out.push_back(cur);
-  return out;
-}
 
 // "xmin ymin zmin xmax ymax zmax" (blanks or commas between).
 CropBox parseCrop(const std::string& text) {
@@ -68,17 +57,6 @@ CropBox parseCrop(const std::string& text) {
       throw Error("--crop: '" + w[i] + "' is not a finite number");
   }
   return {Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])};
-}
-
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
-    else if (c == '\n') o += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o + "\"";
 }
 
 std::string vec3(const Eigen::Vector3d& v) {

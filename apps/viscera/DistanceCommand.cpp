@@ -2,6 +2,7 @@
 // the simulated tissue surface, per frame, with obs::CloudDistance. The surface is one mesh, or the
 // frames of a simulation's VTK series matched to the clouds by time.
 #include "apps/viscera/DistanceCommand.h"
+#include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
@@ -32,6 +33,8 @@
 
 namespace viscera {
 namespace {
+
+using cli::jsonString;
 
 namespace fs = std::filesystem;
 
@@ -234,17 +237,6 @@ std::string num(double v) {
 
 // A number for JSON: null for NaN or infinity.
 std::string jsonNum(double v) { return std::isfinite(v) ? num(v) : "null"; }
-
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
-    else if (c == '\n') o += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o + "\"";
-}
 
 std::string csvField(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;

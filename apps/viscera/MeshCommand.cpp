@@ -2,6 +2,7 @@
 // writes a .msh or .vtu volume mesh with a quality report; `viscera mesh --check` only checks the
 // surface.
 #include "apps/viscera/MeshCommand.h"
+#include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
 #include <cctype>
@@ -20,6 +21,8 @@
 namespace viscera {
 namespace {
 
+using cli::jsonString;
+
 namespace fs = std::filesystem;
 
 struct MeshCommandOptions {
@@ -32,17 +35,6 @@ std::string lowerExtension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext;
-}
-
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
-    else if (c == '\n') o += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o + "\"";
 }
 
 std::string point(const Eigen::Vector3d& p) {

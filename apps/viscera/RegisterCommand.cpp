@@ -2,6 +2,7 @@
 // `viscera register points`: robot -> scene from corresponding points. Both write a transform file
 // that scenes reference (TrajectoryDriver.transform) and, on request, a JSON report.
 #include "apps/viscera/RegisterCommand.h"
+#include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
 
@@ -28,6 +29,9 @@
 namespace viscera {
 namespace {
 
+using cli::words;
+using cli::jsonString;
+
 namespace fs = std::filesystem;
 
 struct IcpCommandOptions {
@@ -41,21 +45,6 @@ struct PointsCommandOptions {
 
 // ---------------------------------------------------------------------------------------------
 // Parsing and formatting of option values, summaries and JSON
-
-// Words separated by blanks and/or commas.
-std::vector<std::string> words(const std::string& s) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : s) {
-    if (c == ',' || c == ' ' || c == '\t') {
-      if (!cur.empty()) out.push_back(cur), cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  if (!cur.empty()) out.push_back(cur);
-  return out;
-}
 
 // Three finite numbers "a b c" (blanks or commas between) given to `option`.
 Eigen::Vector3d parseVector3(const std::string& text, const std::string& option, const char* meaning) {
@@ -82,17 +71,6 @@ std::string number(double v, int digits = 6) {
 
 // A JSON number (null for infinities and NaN, which JSON cannot hold).
 std::string jsonNumber(double v, int digits = 10) { return std::isfinite(v) ? number(v, digits) : "null"; }
-
-std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
-    else if (c == '\n') o += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o + "\"";
-}
 
 std::string jsonVector(const Eigen::Ref<const Eigen::VectorXd>& v, int digits = 10) {
   std::string o = "[";

@@ -1,6 +1,7 @@
 // `viscera trajectory`: builds a PalpationSpec from the options (the box given directly or as
 // the bounding box of a volume mesh), generates the pokes and writes the trajectory CSV.
 #include "apps/viscera/TrajectoryCommand.h"
+#include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
 
@@ -24,25 +25,12 @@
 namespace viscera {
 namespace {
 
+using cli::words;
+
 struct TrajectoryOptions {
   motion::PalpationSpec spec;
   std::string box, mesh, faces, out;
 };
-
-// Words separated by blanks and/or commas.
-std::vector<std::string> words(const std::string& s) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : s) {
-    if (c == ',' || c == ' ' || c == '\t') {
-      if (!cur.empty()) out.push_back(cur), cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  if (!cur.empty()) out.push_back(cur);
-  return out;
-}
 
 // "xmin ymin zmin xmax ymax zmax" (blanks or commas between).
 void parseBox(const std::string& text, motion::PalpationSpec& spec) {
