@@ -1,5 +1,11 @@
 #include "apps/viscera/CliText.h"
 
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "engine/core/Error.h"
+
 namespace viscera::cli {
 
 std::vector<std::string> words(const std::string& s) {
@@ -14,6 +20,22 @@ std::vector<std::string> words(const std::string& s) {
   }
   if (!cur.empty()) out.push_back(cur);
   return out;
+}
+
+std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape) {
+  const auto w = words(text);
+  if (w.size() != count)
+    throw Error(option + ": expected " + std::to_string(count) + " numbers \"" + shape + "\", got " + std::to_string(w.size()) +
+                " in '" + text + "'");
+  std::vector<double> v(count);
+  for (size_t i = 0; i < count; ++i) {
+    char* end = nullptr;
+    errno = 0;
+    v[i] = std::strtod(w[i].c_str(), &end);
+    if (end != w[i].c_str() + w[i].size() || errno == ERANGE || !std::isfinite(v[i]))
+      throw Error(option + ": '" + w[i] + "' is not a finite number");
+  }
+  return v;
 }
 
 std::string jsonString(const std::string& s) {

@@ -9,6 +9,10 @@ namespace viscera::cli {
 // Words separated by blanks and/or commas ("1 2 3", "1,2,3", "1, 2, 3").
 std::vector<std::string> words(const std::string& s);
 
+// Exactly `count` finite numbers written as words (blanks and/or commas between), e.g. a box
+// "xmin ymin zmin xmax ymax zmax". Throws viscera::Error naming `option` and showing `shape`.
+std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape);
+
 // `s` as a quoted JSON string: quotes and backslashes escaped, newlines as \n, other control
 // characters as blanks.
 std::string jsonString(const std::string& s);

@@ -24,7 +24,6 @@
 namespace viscera {
 namespace {
 
-using cli::words;
 using cli::jsonString;
 
 namespace fs = std::filesystem;
@@ -44,18 +43,7 @@ struct InfoCommandOptions {
 
 // "xmin ymin zmin xmax ymax zmax" (blanks or commas between).
 CropBox parseCrop(const std::string& text) {
-  const auto w = words(text);
-  if (w.size() != 6)
-    throw Error("--crop: expected 6 numbers \"xmin ymin zmin xmax ymax zmax\", got " + std::to_string(w.size()) + " in '" +
-                text + "'");
-  double v[6];
-  for (int i = 0; i < 6; ++i) {
-    char* end = nullptr;
-    errno = 0;
-    v[i] = std::strtod(w[i].c_str(), &end);
-    if (end != w[i].c_str() + w[i].size() || errno == ERANGE || !std::isfinite(v[i]))
-      throw Error("--crop: '" + w[i] + "' is not a finite number");
-  }
+  const auto v = cli::finiteNumbers(text, "--crop", 6, "xmin ymin zmin xmax ymax zmax");
   return {Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])};
 }
 

@@ -29,7 +29,6 @@
 namespace viscera {
 namespace {
 
-using cli::words;
 using cli::jsonString;
 
 namespace fs = std::filesystem;
@@ -48,18 +47,8 @@ struct PointsCommandOptions {
 
 // Three finite numbers "a b c" (blanks or commas between) given to `option`.
 Eigen::Vector3d parseVector3(const std::string& text, const std::string& option, const char* meaning) {
-  const auto w = words(text);
-  if (w.size() != 3)
-    throw Error(option + ": expected 3 numbers \"" + meaning + "\", got " + std::to_string(w.size()) + " in '" + text + "'");
-  Eigen::Vector3d v;
-  for (int i = 0; i < 3; ++i) {
-    char* end = nullptr;
-    errno = 0;
-    v[i] = std::strtod(w[i].c_str(), &end);
-    if (end != w[i].c_str() + w[i].size() || errno == ERANGE || !std::isfinite(v[i]))
-      throw Error(option + ": '" + w[i] + "' is not a finite number");
-  }
-  return v;
+  const auto v = cli::finiteNumbers(text, option, 3, meaning);
+  return {v[0], v[1], v[2]};
 }
 
 std::string number(double v, int digits = 6) {

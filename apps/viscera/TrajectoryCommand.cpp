@@ -34,18 +34,7 @@ struct TrajectoryOptions {
 
 // "xmin ymin zmin xmax ymax zmax" (blanks or commas between).
 void parseBox(const std::string& text, motion::PalpationSpec& spec) {
-  const auto w = words(text);
-  if (w.size() != 6)
-    throw Error("--box: expected 6 numbers \"xmin ymin zmin xmax ymax zmax\", got " + std::to_string(w.size()) + " in '" +
-                text + "'");
-  double v[6];
-  for (int i = 0; i < 6; ++i) {
-    char* end = nullptr;
-    errno = 0;
-    v[i] = std::strtod(w[i].c_str(), &end);
-    if (end != w[i].c_str() + w[i].size() || errno == ERANGE || !std::isfinite(v[i]))
-      throw Error("--box: '" + w[i] + "' is not a finite number");
-  }
+  const auto v = cli::finiteNumbers(text, "--box", 6, "xmin ymin zmin xmax ymax zmax");
   spec.boxMin = Eigen::Vector3d(v[0], v[1], v[2]);
   spec.boxMax = Eigen::Vector3d(v[3], v[4], v[5]);
 }
