@@ -51,18 +51,6 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-// Field text quoted for a message (shortened, binary bytes masked).
-std::string quoted(std::string_view s) {
-  constexpr size_t kMax = 40;
-  std::string out = "'";
-  for (size_t i = 0; i < s.size() && i < kMax; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    out += c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?';
-  }
-  if (s.size() > kMax) out += "...";
-  return out + "'";
-}
-
 // Whole-field parse. NaN, Inf and out-of-range values are numbers here (Number with a
 // non-finite value) so that they get their own message.
 enum class Parsed { Number, NotANumber };

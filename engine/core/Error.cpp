@@ -11,4 +11,15 @@ std::string SourceLoc::str() const {
   return s;
 }
 
+std::string quoted(std::string_view text) {
+  constexpr size_t kMax = 40;
+  std::string out = "'";
+  for (size_t i = 0; i < text.size() && i < kMax; ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    out += c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?';
+  }
+  if (text.size() > kMax) out += "...";
+  return out + "'";
+}
+
 }  // namespace viscera

@@ -3,6 +3,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace viscera {
 
@@ -32,5 +33,9 @@ class Error : public std::runtime_error {
  private:
   SourceLoc where_;
 };
+
+// A piece of input quoted for an error message: at most 40 characters (then "..."), bytes that
+// are not printable ASCII shown as '?', so binary garbage stays out of terminals.
+std::string quoted(std::string_view text);
 
 }  // namespace viscera

@@ -339,17 +339,6 @@ bool parseNumber(std::string_view s, double& out) {
   return true;
 }
 
-std::string quoted(std::string_view s) {
-  constexpr size_t kMax = 40;
-  std::string out = "'";
-  for (size_t i = 0; i < s.size() && i < kMax; ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    out += c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?';
-  }
-  if (s.size() > kMax) out += "...";
-  return out + "'";
-}
-
 }  // namespace
 
 PointRegistration registerPoints(const Eigen::Matrix3Xd& source, const Eigen::Matrix3Xd& target, const std::string& sourceName,

@@ -32,17 +32,6 @@ std::string readWholeFile(const std::string& path) {
   return bytes;
 }
 
-std::string quoted(std::string_view token) {
-  constexpr size_t kMax = 40;
-  std::string out = "'";
-  for (size_t i = 0; i < token.size() && i < kMax; ++i) {
-    unsigned char c = static_cast<unsigned char>(token[i]);
-    out += std::isprint(c) ? static_cast<char>(c) : '?';  // keeps binary garbage out of terminals
-  }
-  if (token.size() > kMax) out += "...";
-  return out + "'";
-}
-
 static bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
 
 std::string_view trim(std::string_view s) {

@@ -7,6 +7,7 @@
 #include <string_view>
 #include <vector>
 
+#include "engine/core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io::detail {
@@ -17,8 +18,8 @@ namespace viscera::io::detail {
 // The whole file as bytes; throws an Error naming the path when it cannot be read.
 std::string readWholeFile(const std::string& path);
 
-// A token quoted for a message, shortened when it is long or binary.
-std::string quoted(std::string_view token);
+// A token quoted for a message, shortened when it is long or binary (engine/core/Error.h).
+using viscera::quoted;
 
 std::string_view trim(std::string_view s);
 bool equalsIgnoreCase(std::string_view a, std::string_view b);

@@ -8,6 +8,7 @@
 #include <functional>
 #include <string>
 
+#include "tests/support/ErrorOf.h"
 #include "engine/core/Error.h"
 #include "io/surface/SurfaceMesh.h"
 #include "tests/meshing/shapes.h"
@@ -28,15 +29,7 @@ constexpr double kPi = 3.14159265358979323846;
 // The box of the tests: 20 x 10 x 5 in 8 x 4 x 2 cells of 2.5 (coordinates exact in float).
 SurfaceMesh box(bool skipTop = false) { return gridBox(Eigen::Vector3d(20, 10, 5), {8, 4, 2}, skipTop); }
 
-// The message of the viscera::Error that `f` throws ("" if none).
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using viscera::test_support::errorOf;
 
 void writeText(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 

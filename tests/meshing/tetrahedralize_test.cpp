@@ -2,6 +2,7 @@
 // surface encloses (box: 1000; icosphere: its polyhedral volume, 0.86 % below the sphere's), the
 // boundary kept with keepSurface, quality measures on tetrahedra with known angles, the Gmsh
 // writer, and the errors (missing or failing program, self-intersection, bad options).
+#include "tests/support/ErrorOf.h"
 #include "io/meshing/Tetrahedralize.h"
 
 #include <gtest/gtest.h>
@@ -35,14 +36,7 @@ constexpr double kDegrees = 180.0 / kPi;
 
 SurfaceMesh box() { return gridBox(Eigen::Vector3d(20, 10, 5), {8, 4, 2}); }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using viscera::test_support::errorOf;
 
 // Points TMPDIR at a folder of the test for as long as it lives, so the test can see what the
 // meshing leaves behind there.

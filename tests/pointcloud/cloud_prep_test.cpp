@@ -9,6 +9,7 @@
 #include <string>
 #include <tuple>
 
+#include "tests/support/ErrorOf.h"
 #include "engine/core/Error.h"
 #include "io/pointcloud/CloudPrep.h"
 #include "tests/pointcloud/synthetic_capture.h"
@@ -20,16 +21,7 @@ using viscera_test::SyntheticCapture;
 
 namespace {
 
-// Message of the viscera::Error that `f` throws ("" if none).
-template <typename F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using viscera::test_support::errorOf;
 
 // Points near the phantom's visible faces, by geometry: within 1.5 mm of the box surface (3 times
 // the 0.5 mm noise) and above the strip along the table that plane removal legitimately takes

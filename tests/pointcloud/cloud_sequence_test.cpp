@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/ErrorOf.h"
 #include "engine/core/Error.h"
 #include "io/pointcloud/CloudIo.h"
 #include "tests/support/TempDir.h"
@@ -18,15 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-template <typename F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using viscera::test_support::errorOf;
 
 void writeText(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 

@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "tests/support/ErrorOf.h"
 #include "engine/core/Error.h"
 #include "engine/observation/Registration.h"
 #include "tests/registration/phantom.h"
@@ -30,14 +31,7 @@ RigidTransform randomTransform(std::mt19937& rng) {
   return T;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const viscera::Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using viscera::test_support::errorOf;
 
 TEST(PointRegistration, ExactForTheFourTopCornersWithoutNoise) {
   std::mt19937 rng(3);
