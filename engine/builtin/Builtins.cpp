@@ -17,6 +17,7 @@ void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
 void registerMappings(Registry&);
 void registerObservation(Registry&);
+void registerRobotDrivers(Registry&);
 
 void registerBuiltins(Registry& r) {
   registerMechanicalObject(r);
@@ -33,6 +34,7 @@ void registerBuiltins(Registry& r) {
   registerConstraintContact(r);
   registerMappings(r);
   registerObservation(r);
+  registerRobotDrivers(r);
 
   const char* drawing = "drawing only";
   for (const char* t : {"VisualStyle", "OglSceneFrame", "LightManager", "DirectionalLight",

@@ -16,6 +16,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/observation/DepthCamera.h"
 #include "engine/observation/SurfaceIndex.h"
+#include "engine/rigid/Placement.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
 
@@ -175,9 +176,7 @@ class DepthCameraComponent : public Component, public Observer {
       try {
         pose_ = readTransform(path);
       } catch (const Error& e) {
-        // The transform file's own file:line comes first; say which scene element asked for it.
-        throw Error(e.where(), std::string(e.what()).substr(e.where().known() ? e.where().str().size() + 2 : 0) +
-                                   " (read for " + attrs_.loc("transform").str() + ": DepthCamera.transform)");
+        throw fileErrorFor(e, *this, "transform");
       }
       return pose_.translation();
     }

@@ -7,23 +7,13 @@
 #include "engine/Roles.h"
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
+#include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
-#include "io/scene/Transform.h"
 #include "motion/Trajectory.h"
 
 namespace viscera {
 
 namespace {
-
-// The rotation vector (axis x angle, shortest arc) of the rotation taking `from` to `to`, in the
-// world frame: to = exp(v) from.
-Eigen::Vector3d rotationVector(const Eigen::Quaterniond& from, const Eigen::Quaterniond& to) {
-  Eigen::Quaterniond dq = to * from.conjugate();
-  if (dq.w() < 0) dq.coeffs() *= -1;
-  const double s = dq.vec().norm();
-  if (!(s > 1e-12)) return dq.vec() * (2 / dq.w());  // small angle: angle / s -> 2 / w
-  return dq.vec() * (2 * std::atan2(s, dq.w()) / s);
-}
 
 class TrajectoryDriver : public Component, public Driver {
  public:
@@ -36,31 +26,10 @@ class TrajectoryDriver : public Component, public Driver {
     try {
       traj_ = motion::readTrajectoryCsv(path);
     } catch (const Error& e) {
-      // The trajectory's own file:line comes first; say which scene element asked for it.
-      throw Error(e.where(), std::string(e.what()).substr(e.where().known() ? e.where().str().size() + 2 : 0) +
-                                 " (read for " + attrs_.loc("filename").str() + ": TrajectoryDriver.filename)");
+      throw fileErrorFor(e, *this, "filename");
     }
     offset_ = attrs_.real("timeOffset");
-    const auto& r = attrs_.reals("rotation");
-    const auto& t = attrs_.reals("translation");
-    const Eigen::Quaterniond placeR = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-                                      Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
-                                      Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
-    const Eigen::Vector3d placeT(t[0], t[1], t[2]);
-    // The robot -> scene transform file comes first, then rotation, then translation:
-    // x_scene = R_place (R_file x + t_file) + t_place.
-    RigidTransform file = RigidTransform::Identity();
-    if (attrs_.isSet("transform")) {
-      const std::string tpath = scene().resolvePath(attrs_.str("transform"));
-      try {
-        file = readTransform(tpath);
-      } catch (const Error& e) {
-        throw Error(e.where(), std::string(e.what()).substr(e.where().known() ? e.where().str().size() + 2 : 0) +
-                                   " (read for " + attrs_.loc("transform").str() + ": TrajectoryDriver.transform)");
-      }
-    }
-    R_ = placeR * Eigen::Quaterniond(file.linear());
-    T_ = placeR * file.translation() + placeT;
+    place_ = readPlacement(*this);
     drive(scene().startTime());
     body_->p0 = body_->p;
     body_->q0 = body_->q;
@@ -72,8 +41,8 @@ class TrajectoryDriver : public Component, public Driver {
   void drive(double t) override {
     const double tt = t + offset_, h = scene().dt();
     const motion::Pose pose = traj_.sample(tt), before = traj_.sample(tt - h);
-    body_->setMotion(R_ * pose.p + T_, R_ * pose.q, R_ * ((pose.p - before.p) / h),
-                     R_ * (rotationVector(before.q, pose.q) / h));
+    body_->setMotion(place_.point(pose.p), place_.rotation(pose.q), place_.vector((pose.p - before.p) / h),
+                     place_.vector(rotationVector(before.q, pose.q) / h));
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "duration") out.values = {traj_.end() - offset_};
@@ -85,8 +54,7 @@ class TrajectoryDriver : public Component, public Driver {
   RigidObject* body_ = nullptr;
   motion::Trajectory traj_;
   double offset_ = 0;
-  Eigen::Quaterniond R_ = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d T_ = Eigen::Vector3d::Zero();
+  Placement place_;
 };
 
 class LinearMovementConstraint : public Component, public Driver {
@@ -172,10 +140,7 @@ void registerDrivers(Registry& r) {
     s.add(AttrSpec::file("filename").req().help("trajectory CSV (t,x,y,z,qx,qy,qz,qw)"));
     s.add(AttrSpec::link("object").help("the Rigid3d MechanicalObject (default: the one in the node)"));
     s.add(AttrSpec::real("timeOffset").def("0").unit(Dimension::time()).help("trajectory time = scene time + timeOffset"));
-    s.add(AttrSpec::file("transform").help("rigid transform file (4 x 4 matrix, robot -> scene, translation in the scene's "
-                                            "length unit) applied to every pose first, before `rotation` and `translation`"));
-    s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the trajectory, after the rotation"));
-    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z, applied to the trajectory after `transform`"));
+    addPlacementAttributes(s, "the trajectory");
     s.factory = [](BuildContext& c) { return std::make_unique<TrajectoryDriver>(c); };
     r.add(std::move(s));
   }

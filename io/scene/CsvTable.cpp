@@ -1,0 +1,138 @@
+#include "io/scene/CsvTable.h"
+
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <string_view>
+
+#include "engine/core/Error.h"
+
+namespace viscera::io {
+namespace {
+
+bool isBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && isBlank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && isBlank(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+// Whole-field parse; out-of-range values (1e999) come back as infinite so that they are reported
+// as not finite rather than as not numbers.
+bool parseNumber(std::string_view s, double& out) {
+  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);  // from_chars rejects '+'
+  if (s.empty()) return false;
+  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out, std::chars_format::general);
+  if (end != s.data() + s.size()) return false;
+  if (ec == std::errc::result_out_of_range) {
+    out = std::numeric_limits<double>::infinity();
+    return true;
+  }
+  return ec == std::errc();
+}
+
+bool looksNumeric(std::string_view first) {
+  double ignored;
+  if (parseNumber(first, ignored)) return true;
+  const char c = first.empty() ? '\0' : first.front();
+  return std::isdigit(static_cast<unsigned char>(c)) || c == '+' || c == '-' || c == '.';
+}
+
+struct Field {
+  std::string_view text;
+  int col;  // 1-based column of the field's first character in the line
+};
+
+void splitFields(std::string_view line, std::vector<Field>& fields) {
+  fields.clear();
+  size_t start = 0;
+  while (true) {
+    const size_t comma = line.find(',', start);
+    const size_t stop = comma == std::string_view::npos ? line.size() : comma;
+    const std::string_view raw = line.substr(start, stop - start);
+    size_t lead = 0;
+    while (lead < raw.size() && isBlank(raw[lead])) ++lead;
+    fields.push_back({trim(raw), static_cast<int>(start + lead) + 1});
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) {
+    if (!s.empty()) s += ',';
+    s += n;
+  }
+  return s;
+}
+
+}  // namespace
+
+NumericCsv parseNumericCsv(const std::string& text, const std::string& source,
+                           const std::vector<std::string>& columnNames) {
+  NumericCsv table;
+  table.source = source;
+  table.columns = static_cast<int>(columnNames.size());
+  std::vector<Field> fields;
+  bool firstContent = true;
+  size_t pos = 0;
+  for (int lineNo = 1; pos < text.size(); ++lineNo) {
+    size_t eol = text.find('\n', pos);
+    if (eol == std::string::npos) eol = text.size();
+    const std::string_view line = trim(std::string_view(text).substr(pos, eol - pos));
+    pos = eol + 1;
+    if (line.empty() || line.front() == '#') continue;
+    splitFields(line, fields);
+    if (firstContent) {
+      firstContent = false;
+      if (!looksNumeric(fields[0].text)) {
+        for (const Field& f : fields) table.header.emplace_back(f.text);
+        continue;
+      }
+    }
+    if (static_cast<int>(fields.size()) != table.columns)
+      throw Error(SourceLoc{source, lineNo}, "expected " + std::to_string(table.columns) + " columns (" +
+                                                 joined(columnNames) + "), got " + std::to_string(fields.size()));
+    for (int c = 0; c < table.columns; ++c) {
+      double v;
+      const std::string column = "column '" + columnNames[c] + "'";
+      if (!parseNumber(fields[c].text, v))
+        throw Error(SourceLoc{source, lineNo, fields[c].col}, column + ": " + quoted(fields[c].text) + " is not a number");
+      if (!std::isfinite(v))
+        throw Error(SourceLoc{source, lineNo, fields[c].col}, column + " is not finite (" + quoted(fields[c].text) + ")");
+      table.values.push_back(v);
+    }
+    table.lines.push_back(lineNo);
+  }
+  if (table.lines.empty()) throw Error(SourceLoc{source}, "no rows (expected " + joined(columnNames) + ")");
+  return table;
+}
+
+NumericCsv readNumericCsv(const std::string& path, const std::vector<std::string>& columnNames) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw Error(SourceLoc{path}, "cannot open: it is a directory");
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!file) throw Error(SourceLoc{path}, std::string("cannot open: ") + std::strerror(errno));
+  std::string text;
+  char buffer[1 << 16];
+  size_t got;
+  while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, got);
+  if (std::ferror(file.get())) throw Error(SourceLoc{path}, std::string("cannot read: ") + std::strerror(errno));
+  return parseNumericCsv(text, path, columnNames);
+}
+
+std::string formatReal(double v) {
+  char buffer[32];
+  auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return std::string(buffer, ec == std::errc() ? end : buffer);
+}
+
+}  // namespace viscera::io

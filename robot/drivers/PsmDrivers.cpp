@@ -1,0 +1,131 @@
+// Scene drivers fed by robot data: the instrument follows the tool tip of a dVRK PSM, computed by
+// forward kinematics from a joint log (PsmJointDriver) or from an ESPM packet capture (EspmDriver),
+// then placed in the scene by a registration transform.
+#include <Eigen/Geometry>
+#include <memory>
+#include <vector>
+
+#include "engine/Roles.h"
+#include "engine/core/Registry.h"
+#include "engine/core/Scene.h"
+#include "engine/rigid/Placement.h"
+#include "engine/rigid/RigidObject.h"
+#include "robot/kinematics/JointTrajectory.h"
+#include "robot/kinematics/PsmKinematics.h"
+
+namespace viscera {
+
+namespace {
+
+// Replays a joint trajectory: joint values are interpolated linearly between samples (the robot
+// moves along the kinematic path, not along a straight Cartesian line between sampled tip poses),
+// the tool-tip pose is the forward kinematics of the interpolated joints, converted from m to the
+// scene's length unit and placed by the transform / rotation / translation attributes.
+class JointReplayDriver : public Component, public Driver {
+ public:
+  using Component::Component;
+
+  void drive(double t) override {
+    const double tt = t + offset_, h = scene().dt();
+    joints_.sample(tt - h, q_);
+    const Eigen::Isometry3d before = chain_.forwardKinematics(q_, frames_);
+    joints_.sample(tt, q_);
+    const Eigen::Isometry3d now = chain_.forwardKinematics(q_, frames_);
+    const Eigen::Vector3d p0 = before.translation() * metresToScene_, p1 = now.translation() * metresToScene_;
+    const Eigen::Quaterniond r0(before.linear()), r1(now.linear());
+    // Velocity: the mean over the step ending at t (the step's displacement / dt), as the other
+    // drivers report it for the friction constraints.
+    body_->setMotion(place_.point(p1), place_.rotation(r1), place_.vector((p1 - p0) / h),
+                     place_.vector(rotationVector(r0, r1) / h));
+  }
+
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "duration") out.values = {joints_.end() - offset_};
+    else if (name == "joints") out.values.assign(q_.data(), q_.data() + q_.size());
+    else return false;
+    return true;
+  }
+
+ protected:
+  // Takes the joint samples (read by the subclass) and starts the replay. `where(joints, i)` is
+  // the source location of sample i for limit messages (the CSV line, or the capture packet).
+  template <class Where>
+  void start(robot::JointTrajectory joints, Where where) {
+    body_ = &contextRigid(*this);
+    if (body_->driven) throw error("object", "'" + body_->name() + "' already has a driver");
+    body_->driven = true;
+    if (attrs_.boolean("checkLimits"))
+      for (int i = 0; i < joints.size(); ++i)
+        if (!chain_.limitViolations(joints.joints(i)).empty()) {
+          try {
+            chain_.requireWithinLimits(joints.joints(i), where(joints, i));
+          } catch (const Error& e) {
+            throw fileErrorFor(e, *this, "filename");
+          }
+        }
+    joints_ = std::move(joints);
+    offset_ = attrs_.real("timeOffset");
+    place_ = readPlacement(*this);
+    metresToScene_ = 1.0 / scene().units().siOf(Dimension::length());
+    q_.resize(chain_.dof());
+    frames_.resize(chain_.dof());
+    drive(scene().startTime());
+    body_->p0 = body_->p;
+    body_->q0 = body_->q;
+  }
+
+  const robot::SerialChain chain_ = robot::psmLargeNeedleDriver();
+
+ private:
+  RigidObject* body_ = nullptr;
+  robot::JointTrajectory joints_;
+  double offset_ = 0, metresToScene_ = 1;
+  Placement place_;
+  Eigen::VectorXd q_;
+  std::vector<Eigen::Isometry3d> frames_;
+};
+
+class PsmJointDriver : public JointReplayDriver {
+ public:
+  using JointReplayDriver::JointReplayDriver;
+  void init() override {
+    const std::string path = scene().resolvePath(attrs_.str("filename"));
+    robot::JointTrajectory joints;
+    try {
+      joints = robot::readJointCsv(path, chain_.dof());
+    } catch (const Error& e) {
+      throw fileErrorFor(e, *this, "filename");
+    }
+    start(std::move(joints), [&](const robot::JointTrajectory& j, int i) { return SourceLoc{path, j.line(i)}; });
+  }
+};
+
+// Attributes common to the joint-driven drivers.
+void addReplayAttributes(ComponentSpec& s) {
+  s.add(AttrSpec::link("object").help("the Rigid3d MechanicalObject (default: the one in the node)"));
+  s.add(AttrSpec::real("timeOffset").def("0").unit(Dimension::time()).help("log time = scene time + timeOffset"));
+  s.add(AttrSpec::boolean("checkLimits").def("true").help("reject a log with joint values outside the PSM's joint limits "
+                                                          "(the message names the sample)"));
+  addPlacementAttributes(s, "the tool-tip poses (robot base frame, converted to the scene's length unit)");
+}
+
+}  // namespace
+
+void registerRobotDrivers(Registry& r) {
+  ComponentSpec s;
+  s.name = "PsmJointDriver";
+  s.category = "driver";
+  s.doc = "Moves a rigid body (the instrument) with the tool tip of a dVRK PSM (large needle driver, modified DH "
+          "table in docs/user-guide.md) replaying a joint log: a CSV of t,q1,...,q6 rows (s; rad, and m for the "
+          "insertion q3; header optional). Joint values are interpolated linearly between samples and the pose is "
+          "the forward kinematics of the interpolated joints, so the instrument follows the robot's kinematic path. "
+          "Positions are converted from m to the scene's length unit, then placed by `transform` (robot -> scene), "
+          "`rotation` and `translation`. Held at the first / last sample outside the log. The velocity is the mean "
+          "over each time step. Field `joints`: the joint values at the current time.";
+  s.add(AttrSpec::file("filename").req().help("joint log CSV (t,q1,...,q6; rad and m)"));
+  addReplayAttributes(s);
+  s.factory = [](BuildContext& c) { return std::make_unique<PsmJointDriver>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera
