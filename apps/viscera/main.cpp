@@ -15,6 +15,7 @@
 #include "apps/viscera/CameraCommand.h"
 #include "apps/viscera/CloudCommand.h"
 #include "apps/viscera/DistanceCommand.h"
+#include "apps/viscera/KinematicsCommand.h"
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
@@ -276,6 +277,7 @@ int main(int argc, char** argv) {
   // Each command module sets `action` when its subcommand is given.
   std::function<int()> action;
   addTrajectoryCommand(app, action);
+  addKinematicsCommand(app, action);
   addCloudCommand(app, action);
   addRegisterCommand(app, action);
   addCameraCommand(app, action);
