@@ -19,6 +19,7 @@
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
+#include "apps/viscera/VelocityCommand.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
 #include "engine/rigid/RigidObject.h"
@@ -278,6 +279,7 @@ int main(int argc, char** argv) {
   std::function<int()> action;
   addTrajectoryCommand(app, action);
   addKinematicsCommand(app, action);
+  addVelocityCommand(app, action);
   addCloudCommand(app, action);
   addRegisterCommand(app, action);
   addCameraCommand(app, action);
