@@ -7,7 +7,7 @@ VISCERA   := $(BUILD_DIR)/apps/viscera/viscera
 CCACHE    := $(shell command -v ccache 2>/dev/null)
 CMAKE_FLAGS := -G Ninja -DCMAKE_BUILD_TYPE=Release $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
-.PHONY: all deps configure build demo test bench bench-accuracy docs clean
+.PHONY: all deps configure build demo test bench bench-accuracy fuzz docs clean
 
 all: build
 
@@ -39,6 +39,18 @@ bench: build
 # The palpation replay against a run with a ten times smaller step (long: about 15 minutes).
 bench-accuracy: build
 	$(BUILD_DIR)/tests/viscera_bench --benchmark_filter=Accuracy
+
+# The ESPM stream decoder under libFuzzer with AddressSanitizer and UBSan (clang, installed when
+# missing), for FUZZ_SECONDS; the corpus grows in build-fuzz/corpus. `make test` runs the same
+# target over a seeded corpus without libFuzzer.
+FUZZ_SECONDS ?= 60
+fuzz:
+	@bash scripts/install-deps.sh clang
+	cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+	  -DVISCERA_FUZZ=ON -DVISCERA_WITH_PCL=OFF $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+	cmake --build build-fuzz -j $(JOBS) --target fuzz_espm
+	mkdir -p build-fuzz/corpus
+	build-fuzz/tests/fuzz_espm -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 build-fuzz/corpus
 
 # Regenerates the component reference from the attribute declarations.
 docs: build

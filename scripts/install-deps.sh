@@ -10,6 +10,8 @@ packages=(
   libpcl-dev libopenmesh-dev tetgen
   gnuplot-nox
 )
+# Extra packages a target needs (e.g. `make fuzz` asks for clang).
+packages+=("$@")
 
 missing=()
 for p in "${packages[@]}"; do

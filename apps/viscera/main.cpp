@@ -15,6 +15,7 @@
 #include "apps/viscera/CameraCommand.h"
 #include "apps/viscera/CloudCommand.h"
 #include "apps/viscera/DistanceCommand.h"
+#include "apps/viscera/EspmCommand.h"
 #include "apps/viscera/KinematicsCommand.h"
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
@@ -279,6 +280,7 @@ int main(int argc, char** argv) {
   std::function<int()> action;
   addTrajectoryCommand(app, action);
   addKinematicsCommand(app, action);
+  addEspmCommand(app, action);
   addVelocityCommand(app, action);
   addCloudCommand(app, action);
   addRegisterCommand(app, action);

@@ -2,7 +2,9 @@
 // forward kinematics from a joint log (PsmJointDriver) or from an ESPM packet capture (EspmDriver),
 // then placed in the scene by a registration transform.
 #include <Eigen/Geometry>
+#include <functional>
 #include <memory>
+#include <sstream>
 #include <vector>
 
 #include "engine/Roles.h"
@@ -10,6 +12,7 @@
 #include "engine/core/Scene.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
+#include "robot/espm/Capture.h"
 #include "robot/kinematics/JointTrajectory.h"
 #include "robot/kinematics/PsmKinematics.h"
 
@@ -47,20 +50,23 @@ class JointReplayDriver : public Component, public Driver {
   }
 
  protected:
-  // Takes the joint samples (read by the subclass) and starts the replay. `where(joints, i)` is
-  // the source location of sample i for limit messages (the CSV line, or the capture packet).
-  template <class Where>
-  void start(robot::JointTrajectory joints, Where where) {
+  // Where sample i of the log came from, for limit messages: a location and a prefix for the
+  // message (the CSV line and ""; or the capture and "packet at byte N (t = T s): ").
+  using SampleSource = std::function<std::pair<SourceLoc, std::string>(const robot::JointTrajectory&, int)>;
+
+  // Takes the joint samples (read by the subclass) and starts the replay.
+  void start(robot::JointTrajectory joints, const SampleSource& where) {
     body_ = &contextRigid(*this);
     if (body_->driven) throw error("object", "'" + body_->name() + "' already has a driver");
     body_->driven = true;
     if (attrs_.boolean("checkLimits"))
       for (int i = 0; i < joints.size(); ++i)
         if (!chain_.limitViolations(joints.joints(i)).empty()) {
+          const auto [loc, prefix] = where(joints, i);
           try {
-            chain_.requireWithinLimits(joints.joints(i), where(joints, i));
+            chain_.requireWithinLimits(joints.joints(i));
           } catch (const Error& e) {
-            throw fileErrorFor(e, *this, "filename");
+            throw fileErrorFor(Error(loc, prefix + e.what()), *this, "filename");
           }
         }
     joints_ = std::move(joints);
@@ -96,8 +102,53 @@ class PsmJointDriver : public JointReplayDriver {
     } catch (const Error& e) {
       throw fileErrorFor(e, *this, "filename");
     }
-    start(std::move(joints), [&](const robot::JointTrajectory& j, int i) { return SourceLoc{path, j.line(i)}; });
+    start(std::move(joints), [&](const robot::JointTrajectory& j, int i) {
+      return std::pair{SourceLoc{path, j.line(i)}, std::string()};
+    });
   }
+};
+
+class EspmDriver : public JointReplayDriver {
+ public:
+  using JointReplayDriver::JointReplayDriver;
+  void init() override {
+    const std::string path = scene().resolvePath(attrs_.str("filename"));
+    robot::espm::CaptureOptions options;
+    robot::espm::parseFraming(attrs_.str("framing"), options.framing);  // the attribute's choices are the names
+    options.lineRate = attrs_.real("lineRate");
+    if (!(options.lineRate > 0)) throw error("lineRate", "must be positive");
+    robot::espm::JointScale scale;
+    const auto& counts = attrs_.reals("countsPerUnit");
+    const auto& offsets = attrs_.reals("jointOffset");
+    for (int j = 0; j < chain_.dof(); ++j) {
+      if (!(counts[j] != 0)) throw error("countsPerUnit", "entry " + std::to_string(j + 1) + " is zero");
+      scale.countsPerUnit[j] = counts[j];
+      scale.offset[j] = offsets[j];
+    }
+    robot::espm::Capture capture;
+    robot::JointTrajectory joints;
+    try {
+      capture = robot::espm::readCapture(path, options);
+      joints = robot::espm::jointsFromCapture(capture, scale);
+    } catch (const Error& e) {
+      throw fileErrorFor(e, *this, "filename");
+    }
+    stats_ = capture.stats;
+    start(std::move(joints), [&](const robot::JointTrajectory&, int i) {
+      std::ostringstream m;
+      m << "packet at byte " << capture.samples[i].offset << " (t = " << capture.samples[i].time << " s): ";
+      return std::pair{SourceLoc{path}, m.str()};
+    });
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "packets") out.values = {static_cast<double>(stats_.packets)};
+    else if (name == "crcErrors") out.values = {static_cast<double>(stats_.crcFailures)};
+    else return JointReplayDriver::field(name, out);
+    return true;
+  }
+
+ private:
+  robot::espm::DecoderStats stats_;
 };
 
 // Attributes common to the joint-driven drivers.
@@ -112,20 +163,44 @@ void addReplayAttributes(ComponentSpec& s) {
 }  // namespace
 
 void registerRobotDrivers(Registry& r) {
-  ComponentSpec s;
-  s.name = "PsmJointDriver";
-  s.category = "driver";
-  s.doc = "Moves a rigid body (the instrument) with the tool tip of a dVRK PSM (large needle driver, modified DH "
-          "table in docs/user-guide.md) replaying a joint log: a CSV of t,q1,...,q6 rows (s; rad, and m for the "
-          "insertion q3; header optional). Joint values are interpolated linearly between samples and the pose is "
-          "the forward kinematics of the interpolated joints, so the instrument follows the robot's kinematic path. "
-          "Positions are converted from m to the scene's length unit, then placed by `transform` (robot -> scene), "
-          "`rotation` and `translation`. Held at the first / last sample outside the log. The velocity is the mean "
-          "over each time step. Field `joints`: the joint values at the current time.";
-  s.add(AttrSpec::file("filename").req().help("joint log CSV (t,q1,...,q6; rad and m)"));
-  addReplayAttributes(s);
-  s.factory = [](BuildContext& c) { return std::make_unique<PsmJointDriver>(c); };
-  r.add(std::move(s));
+  {
+    ComponentSpec s;
+    s.name = "PsmJointDriver";
+    s.category = "driver";
+    s.doc = "Moves a rigid body (the instrument) with the tool tip of a dVRK PSM (large needle driver, modified DH "
+            "table in docs/user-guide.md) replaying a joint log: a CSV of t,q1,...,q6 rows (s; rad, and m for the "
+            "insertion q3; header optional). Joint values are interpolated linearly between samples and the pose is "
+            "the forward kinematics of the interpolated joints, so the instrument follows the robot's kinematic path. "
+            "Positions are converted from m to the scene's length unit, then placed by `transform` (robot -> scene), "
+            "`rotation` and `translation`. Held at the first / last sample outside the log. The velocity is the mean "
+            "over each time step. Field `joints`: the joint values at the current time.";
+    s.add(AttrSpec::file("filename").req().help("joint log CSV (t,q1,...,q6; rad and m)"));
+    addReplayAttributes(s);
+    s.factory = [](BuildContext& c) { return std::make_unique<PsmJointDriver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "EspmDriver";
+    s.category = "driver";
+    s.doc = "Moves a rigid body (the instrument) with the tool tip of a dVRK PSM whose joints are read from an ESPM "
+            "capture: the raw bytes of the arm's 20 Mbit/s link (written by `viscera espm synth` or recorded). The "
+            "capture is decoded (framing, CRC, resynchronisation after corrupt data), each packet's encoder counts 1-6 "
+            "become joint values q = count / countsPerUnit + jointOffset, timed by the packet's position on the line "
+            "(t = byte offset x 8 / lineRate), and the tool tip follows as in PsmJointDriver. A packet with an encoder "
+            "overflow is an error naming its byte offset. Fields: `joints`, `packets` (decoded), `crcErrors`.";
+    s.add(AttrSpec::file("filename").req().help("ESPM capture (raw link bytes)"));
+    s.add(AttrSpec::choice("framing", {"auto", "dissertation", "public"}).def("auto")
+              .help("packet framing: the dissertation's (magic, 32 quadlets, CRC-16) or the controller's (magic, header "
+                    "with page and length, payload, CRC quadlet); auto decides from the first packets"));
+    s.add(AttrSpec::real("lineRate").def("20e6").help("bit rate of the link (bit/s): packet time = byte offset x 8 / lineRate"));
+    s.add(AttrSpec::reals("countsPerUnit", 6).def("1e5 1e5 1e6 1e5 1e5 1e5")
+              .help("encoder counts per rad (per m for the insertion, joint 3) of joints 1-6"));
+    s.add(AttrSpec::reals("jointOffset", 6).def("0 0 0 0 0 0").help("joint value at count 0 (rad; m for joint 3)"));
+    addReplayAttributes(s);
+    s.factory = [](BuildContext& c) { return std::make_unique<EspmDriver>(c); };
+    r.add(std::move(s));
+  }
 }
 
 }  // namespace viscera
