@@ -15,13 +15,16 @@
 #include "io/scene/Transform.h"
 #include "robot/kinematics/JointTrajectory.h"
 #include "robot/kinematics/PsmKinematics.h"
+#include "tests/support/TempDir.h"
 
 namespace {
 
 std::string source(const std::string& rel) { return std::string(VISCERA_SOURCE_DIR) + "/" + rel; }
 
 TEST(PsmPalpationScene, InstrumentFollowsTheJointLogAndIndentsThePhantom) {
+  viscera::test_support::TempDir out("viscera_psm_scene");
   auto scene = viscera::Scene::build(viscera::io::readScene(source("scenes/psm_palpation.xml")));
+  scene->setOutputDirectory(out.str());  // the scene's VTKExporter writes here, not beside the scene
   viscera::Simulation sim(*scene);
   const viscera::RigidObject& tool = *scene->all<viscera::RigidObject>().front();
   const viscera::MechanicalObject& tissue = *scene->all<viscera::MechanicalObject>().front();
