@@ -19,6 +19,8 @@
 #include "engine/core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
+#include "robot/encoder/Registers.h"
+#include "robot/encoder/VelocityEstimators.h"
 #include "robot/espm/Capture.h"
 #include "robot/kinematics/JointTrajectory.h"
 #include "robot/kinematics/PsmKinematics.h"
@@ -28,6 +30,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using namespace robot::espm;
+namespace encoder = robot::encoder;
 using cli::jsonString;
 
 struct DecodeOptions {
@@ -97,13 +100,24 @@ void appendColumns(std::string& header, const char* name, int count) {
   for (int i = 1; i <= count; ++i) header += std::string(",") + name + std::to_string(i);
 }
 
-// One row per packet: time, offset, encoder counts and overflow flags, joint values (unless left
-// out), potentiometer positions and parity flags, buttons, instrument id, raw velocity quadlets.
-std::string packetCsv(const Capture& capture, const robot::JointTrajectory* joints) {
+// Joint j's velocity (rad/s, m/s for the insertion) from a packet's Rev 6 velocity quadlets: the
+// full-cycle estimate with the acceleration term (Eq. II.7), 0 without a measurement.
+double jointVelocity(const Packet& p, int j, const JointScale& scale) {
+  const encoder::Measurement m = encoder::decodeRev6(p.velocityFirst[j], p.velocitySecond[j]);
+  return encoder::fullCycleAccelerationVelocity(m) / scale.countsPerUnit[j];
+}
+
+// One row per packet: time, offset, encoder counts and overflow flags, joint values and velocities
+// (unless left out), potentiometer positions and parity flags, buttons, instrument id, raw velocity
+// quadlets.
+std::string packetCsv(const Capture& capture, const robot::JointTrajectory* joints, const JointScale& scale) {
   std::string out = "t,offset";
   appendColumns(out, "enc", kJointChannels);
   appendColumns(out, "overflow", kJointChannels);
-  if (joints) appendColumns(out, "q", joints->dof());
+  if (joints) {
+    appendColumns(out, "q", joints->dof());
+    appendColumns(out, "v", joints->dof());
+  }
   appendColumns(out, "pot", kJointChannels);
   appendColumns(out, "parity_ok", kJointChannels);
   out += ",buttons,instrument_id";
@@ -116,8 +130,10 @@ std::string packetCsv(const Capture& capture, const robot::JointTrajectory* join
     out += io::formatReal(s.time) + ',' + std::to_string(s.offset);
     for (const auto& e : p.encoders) out += ',' + std::to_string(e.count);
     for (const auto& e : p.encoders) out += e.overflow ? ",1" : ",0";
-    if (joints)
+    if (joints) {
       for (int j = 0; j < joints->dof(); ++j) out += ',' + io::formatReal(joints->joints(static_cast<int>(i))[j]);
+      for (int j = 0; j < joints->dof(); ++j) out += ',' + io::formatReal(jointVelocity(p, j, scale));
+    }
     for (const auto& pot : p.pots) out += ',' + std::to_string(pot.position);
     for (const auto& pot : p.pots) out += pot.parityOk ? ",1" : ",0";
     out += ',' + hex32(encodeButtons(p.buttons)) + ',' + hex32(p.instrumentId);
@@ -170,7 +186,7 @@ int runDecode(const DecodeOptions& o) {
   // Joint values need every PSM encoder without overflow: an error naming the packet otherwise.
   std::unique_ptr<robot::JointTrajectory> joints;
   if (!o.csv.empty() && !o.noJoints) joints = std::make_unique<robot::JointTrajectory>(jointsFromCapture(capture, scale));
-  if (!o.csv.empty()) io::writeFileAtomic(o.csv, packetCsv(capture, joints.get()));
+  if (!o.csv.empty()) io::writeFileAtomic(o.csv, packetCsv(capture, joints.get(), scale));
   if (!o.json.empty()) io::writeFileAtomic(o.json, summaryJson(capture, counts));
 
   const DecoderStats& s = capture.stats;

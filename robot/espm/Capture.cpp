@@ -12,6 +12,9 @@
 #include "engine/core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
+#include "robot/encoder/EncoderFpga.h"
+#include "robot/encoder/Quadrature.h"
+#include "robot/encoder/Registers.h"
 
 namespace viscera::robot::espm {
 namespace {
@@ -173,6 +176,63 @@ uint16_t potReading(double value, double lower, double upper) {
   return static_cast<uint16_t>(std::clamp(std::isnan(r) ? 0.0 : r, 0.0, 4095.0));
 }
 
+namespace {
+
+// The Rev 6 velocity registers (Tables I-4 / I-5) of joint j's encoder at each packet time (s
+// from the log's first sample). The encoder gives one edge per count (countsPerUnit edges per rad,
+// or per m): a one-line quadrature encoder on a "shaft" geared so that a joint revolution is
+// countsPerUnit x 2 pi counts. Its edges along the log's piecewise-linear motion are timed on the
+// 49.152 MHz clock and fed through the FPGA's quarter-cycle queue, which is read at each packet.
+std::vector<encoder::Rev6Registers> velocityRegisters(const JointTrajectory& joints, int j, double countsPerUnit,
+                                                      const std::vector<double>& times) {
+  const int n = joints.size();
+  std::vector<double> t(static_cast<size_t>(n)), q(static_cast<size_t>(n));
+  const double sign = countsPerUnit < 0 ? -1 : 1;  // a negative scale counts the other way
+  double shortest = 1e-3;
+  for (int i = 0; i < n; ++i) {
+    t[i] = joints.time(i) - joints.start();
+    q[i] = sign * joints.joints(i)[j];
+    if (i > 0) shortest = std::min(shortest, t[i] - t[i - 1]);
+  }
+  // The joint moves linearly between samples and holds outside them.
+  auto segment = [&](double time) {
+    return static_cast<int>(std::upper_bound(t.begin(), t.end(), time) - t.begin()) - 1;
+  };
+  encoder::JointMotion motion;
+  motion.angle = [&](double time) {
+    if (n == 1 || time <= 0) return q.front();
+    if (time >= t.back()) return q.back();
+    const int i = segment(time);
+    return q[i] + (time - t[i]) / (t[i + 1] - t[i]) * (q[i + 1] - q[i]);
+  };
+  motion.velocity = [&](double time) {
+    if (n == 1 || time < 0 || time >= t.back()) return 0.0;
+    const int i = segment(time);
+    return (q[i + 1] - q[i]) / (t[i + 1] - t[i]);
+  };
+  encoder::EncoderSpec spec;
+  spec.lines = 1;
+  spec.gearRatio = std::abs(countsPerUnit) * 2 * M_PI / 4;
+  const encoder::QuadratureEncoder enc(spec);
+  std::vector<encoder::EdgeEvent> edges;
+  try {
+    // Velocity reversals happen only at samples, so half the shortest interval separates them.
+    edges = enc.simulate(motion, 0, times.back(), shortest / 2);
+  } catch (const std::invalid_argument& e) {
+    throw Error("velocities of joint " + std::to_string(j + 1) + ": " + e.what() +
+                " (the motion crosses too many encoder counts; lower the counts per unit)");
+  }
+  std::vector<int64_t> ticks(times.size());
+  for (size_t k = 0; k < times.size(); ++k) ticks[k] = static_cast<int64_t>(std::floor(times[k] * spec.clockHz));
+  const std::vector<encoder::FpgaReadout> readouts =
+      encoder::readAt(edges, enc.levels(q.front()), enc.count(q.front()), ticks);
+  std::vector<encoder::Rev6Registers> registers(readouts.size());
+  for (size_t k = 0; k < readouts.size(); ++k) registers[k] = encoder::encodeRev6(readouts[k]);
+  return registers;
+}
+
+}  // namespace
+
 std::vector<CaptureSample> synthesizeCapture(const JointTrajectory& joints, const SynthesisOptions& o) {
   if (joints.dof() != 6) throw Error("synthesizeCapture: the joint trajectory has " + std::to_string(joints.dof()) + " joints, not 6");
   if (joints.empty()) throw Error("synthesizeCapture: the joint trajectory has no samples");
@@ -198,6 +258,8 @@ std::vector<CaptureSample> synthesizeCapture(const JointTrajectory& joints, cons
   const long long count = static_cast<long long>(std::floor(span * o.rate * (1 + 1e-12) + 1e-9)) + 1;
   std::vector<CaptureSample> samples;
   samples.reserve(static_cast<size_t>(count));
+  std::vector<double> times;
+  times.reserve(static_cast<size_t>(count));
   Eigen::VectorXd q(6);
   for (long long k = 0; k < count; ++k) {
     const uint64_t offset = static_cast<uint64_t>(std::llround(static_cast<double>(k) * bytesPerPacket));
@@ -208,7 +270,16 @@ std::vector<CaptureSample> synthesizeCapture(const JointTrajectory& joints, cons
       packet.pots[j] = {potReading(q[j], o.potLower[j], o.potUpper[j]), 0, true};
     }
     samples.push_back({time, offset, packet});
+    times.push_back(time);
   }
+  if (o.velocities)
+    for (int j = 0; j < 6; ++j) {
+      const std::vector<encoder::Rev6Registers> registers = velocityRegisters(joints, j, o.scale.countsPerUnit[j], times);
+      for (size_t k = 0; k < samples.size(); ++k) {
+        samples[k].packet.velocityFirst[j] = registers[k].period;
+        samples[k].packet.velocitySecond[j] = registers[k].acceleration;
+      }
+    }
   return samples;
 }
 

@@ -99,12 +99,18 @@ struct SynthesisOptions {
   std::array<double, 6> potLower{};
   std::array<double, 6> potUpper{};
   uint32_t instrumentId = 0;
+  // Fill the velocity quadlets with the Rev 6 registers of simulated encoders (one edge per
+  // count, see JointScale) read at each packet's time; false leaves them "no measurement".
+  bool velocities = true;
 };
 
 // Packets of `joints` (6 joints) at `rate`: packet k starts at byte round(k * lineRate / (8 rate))
 // and carries the joints sampled (linear interpolation) at joints.start() + its time, as encoder
 // counts (JointScale) and potentiometer readings; the jaw's encoder and potentiometer read 0,
-// buttons and status quadlets are 0, velocity quadlets read "no measurement". Packets run from
+// buttons and status quadlets are 0. The velocity quadlets of joints 1-6 hold the Rev 6 registers
+// (period, acceleration) of each joint's encoder, simulated along the log with one edge per count
+// and read at the packet's time (see SynthesisOptions::velocities); the jaw's read "no
+// measurement", as do joints that have not yet moved through a full encoder cycle. Packets run from
 // the first sample to the last (times relative to the first sample). Throws viscera::Error when
 // the rate is not positive, or so high that a packet does not fit in its period on the line
 // (naming the limit), and when the trajectory is empty or not 6 joints.

@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "robot/encoder/Registers.h"
+#include "robot/encoder/VelocityEstimators.h"
 #include "robot/espm/Capture.h"
 #include "tests/support/ErrorOf.h"
 #include "tests/support/TempDir.h"
@@ -16,6 +18,8 @@ using namespace viscera::robot::espm;
 using viscera::robot::JointTrajectory;
 using viscera::test_support::errorOf;
 using viscera::test_support::TempDir;
+
+namespace encoder = viscera::robot::encoder;
 
 namespace {
 
@@ -182,7 +186,24 @@ TEST(EspmCapture, SynthesisSamplesTheTrajectoryAtPacketTimes) {
   EXPECT_EQ(mid.packet.pots[3].position, 1024);  // round(1 / 4 * 4095) = 1023.75 -> 1024
   EXPECT_TRUE(mid.packet.pots[0].parityOk);
   EXPECT_EQ(mid.packet.instrumentId, 0xCAFEu);
-  EXPECT_EQ(mid.packet.velocityFirst[2], kVelocityFirstNoMeasurement);
+  // Velocity quadlets (Rev 6) of the simulated encoders: joint 1 turns at 1 rad/s = 1e5 counts/s and
+  // the insertion moves at 0.1 m/s = 1e5 counts/s, so a full cycle (4 counts) takes 40 us = 1966.08
+  // clock ticks. Rev 6 drops the low 4 bits of the sum and the edges are quantised to a tick:
+  // S is known to 17 ticks, a relative error of 17 / 1966.
+  for (int j : {0, 2}) {
+    const encoder::Measurement m = encoder::decodeRev6(mid.packet.velocityFirst[j], mid.packet.velocitySecond[j]);
+    ASSERT_FALSE(m.overflow) << j;
+    const double speed = j == 0 ? 1.0 : 0.1;  // rad/s, m/s
+    EXPECT_NEAR(encoder::fullCycleVelocity(m) / o.scale.countsPerUnit[j], speed, speed * 17 / 1966.08) << j;
+    EXPECT_NEAR(encoder::fullCycleAccelerationVelocity(m) / o.scale.countsPerUnit[j], speed, speed * 17 / 1966.08) << j;
+  }
+  // Joints that never move have seen no edge: overflow, no velocity.
+  for (int j : {1, 3, 4, 5}) {
+    const encoder::Measurement m = encoder::decodeRev6(mid.packet.velocityFirst[j], mid.packet.velocitySecond[j]);
+    EXPECT_TRUE(m.overflow) << j;
+    EXPECT_EQ(encoder::fullCycleVelocity(m), 0.0) << j;
+  }
+  EXPECT_EQ(mid.packet.velocityFirst[6], kVelocityFirstNoMeasurement);  // the jaw
   EXPECT_EQ(mid.packet.velocitySecond[6], kVelocitySecondNoMeasurement);
 
   // Through the bytes and back: the joints come back to within half a count.

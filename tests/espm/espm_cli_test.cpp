@@ -66,7 +66,8 @@ TEST(EspmCli, SynthThenDecodeGivesTheJointsBack) {
   const std::string& header = rows[0];
   EXPECT_EQ(header.substr(0, 22), "t,offset,enc1,enc2,enc");
   const int q1 = column(header, "q1"), pot1 = column(header, "pot1"), id = column(header, "instrument_id");
-  const int velA1 = column(header, "vel_a1"), overflow1 = column(header, "overflow1");
+  const int velA1 = column(header, "vel_a1"), overflow1 = column(header, "overflow1"), vel1 = column(header, "v1");
+  ASSERT_GE(vel1, 0);
   ASSERT_GE(q1, 0);
   ASSERT_GE(pot1, 0);
   for (int k = 0; k <= 250; k += 25) {
@@ -83,8 +84,20 @@ TEST(EspmCli, SynthThenDecodeGivesTheJointsBack) {
     // Pot 1 spans the yaw limits [-1.588, 1.588] rad over 0..4095.
     EXPECT_EQ(std::stoi(f[pot1]), static_cast<int>(std::lround((s + 1.588) / 3.176 * 4095))) << k;
     EXPECT_EQ(f[id], "0x0000CAFE");
-    EXPECT_EQ(f[velA1], "0xBFFFFFFF");
     EXPECT_EQ(f[overflow1], "0");
+    // Velocities from the simulated encoders' Rev 6 quadlets. The joints move at constant speed:
+    // 2 rad/s, 0.3 m/s and -8 rad/s for q1, q3, q4 (2e5, 3e5, 8e5 counts/s), so a full cycle of 4
+    // counts takes 983, 655 and 246 ticks of 49.152 MHz; Rev 6 knows it to 17 ticks (low 4 bits
+    // dropped, edges on ticks). The first packet has seen no full cycle yet: no measurement, 0.
+    const double v1 = std::stod(f[vel1]), v3 = std::stod(f[vel1 + 2]), v4 = std::stod(f[vel1 + 3]);
+    if (k == 0) {
+      EXPECT_EQ(v1, 0.0);
+      EXPECT_EQ(f[velA1], "0xBFFFFFFF");
+    } else {
+      EXPECT_NEAR(v1, 2.0, 2.0 * 17 / 983.04) << k;
+      EXPECT_NEAR(v3, 0.3, 0.3 * 17 / 655.36) << k;
+      EXPECT_NEAR(v4, -8.0, 8.0 * 17 / 245.76) << k;
+    }
   }
   const std::string json = slurp(dir / "arm.json");
   EXPECT_NE(json.find("\"packets\": 251"), std::string::npos) << json;
