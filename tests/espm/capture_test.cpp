@@ -11,6 +11,7 @@
 #include "robot/encoder/Registers.h"
 #include "robot/encoder/VelocityEstimators.h"
 #include "robot/espm/Capture.h"
+#include "tests/espm/espm_test_support.h"
 #include "tests/support/ErrorOf.h"
 #include "tests/support/TempDir.h"
 
@@ -21,13 +22,9 @@ using viscera::test_support::TempDir;
 
 namespace encoder = viscera::robot::encoder;
 
-namespace {
+using espm_test::randomPacket;
 
-Packet randomPacket(std::mt19937_64& rng) {
-  Quadlets q;
-  for (int i = 0; i < kInformationQuadlets; ++i) q[i] = static_cast<uint32_t>(rng()) & usedBits(i);
-  return decodePacket(q);
-}
+namespace {
 
 void writeBytes(const std::string& path, const std::vector<uint8_t>& bytes) {
   std::ofstream out(path, std::ios::binary);

@@ -8,30 +8,14 @@
 
 #include "robot/espm/Crc16.h"
 #include "robot/espm/Packet.h"
+#include "tests/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 
+using espm_test::randomPacket;
+using espm_test::referenceCrc;
+
 namespace {
-
-// Bit-serial CRC straight from the definition: each byte MSB first, shift left, XOR the
-// polynomial when a one falls out. Independent of the table-driven code under test.
-uint16_t referenceCrc(const uint8_t* data, size_t size) {
-  uint16_t crc = 0xFFFF;
-  for (size_t i = 0; i < size; ++i)
-    for (int b = 7; b >= 0; --b) {
-      const bool in = ((data[i] >> b) & 1) != ((crc >> 15) & 1);
-      crc = static_cast<uint16_t>(crc << 1);
-      if (in) crc ^= 0x1DB7;
-    }
-  return crc;
-}
-
-// A packet with every field drawn at random within its bit width.
-Packet randomPacket(std::mt19937_64& rng) {
-  Quadlets q;
-  for (int i = 0; i < kInformationQuadlets; ++i) q[i] = static_cast<uint32_t>(rng()) & usedBits(i);
-  return decodePacket(q);
-}
 
 }  // namespace
 

@@ -9,29 +9,14 @@
 
 #include "robot/espm/Framing.h"
 #include "robot/espm/StreamDecoder.h"
+#include "tests/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 
+using espm_test::randomPacket;
+using espm_test::referenceCrc;
+
 namespace {
-
-// Bit-serial CRC from the definition (polynomial 0x1DB7, initial 0xFFFF, MSB first), independent
-// of the table-driven code.
-uint16_t referenceCrc(const std::vector<uint8_t>& bytes, size_t begin, size_t end) {
-  uint16_t crc = 0xFFFF;
-  for (size_t i = begin; i < end; ++i)
-    for (int b = 7; b >= 0; --b) {
-      const bool in = ((bytes[i] >> b) & 1) != ((crc >> 15) & 1);
-      crc = static_cast<uint16_t>(crc << 1);
-      if (in) crc ^= 0x1DB7;
-    }
-  return crc;
-}
-
-Packet randomPacket(std::mt19937_64& rng) {
-  Quadlets q;
-  for (int i = 0; i < kInformationQuadlets; ++i) q[i] = static_cast<uint32_t>(rng()) & usedBits(i);
-  return decodePacket(q);
-}
 
 struct Decoded {
   std::vector<uint64_t> offsets;
@@ -71,7 +56,7 @@ TEST(EspmFraming, DissertationFrameLayout) {
   // Quadlet 24 big-endian at bytes 4 + 96.
   EXPECT_EQ(std::vector<uint8_t>(f.begin() + 100, f.begin() + 104), (std::vector<uint8_t>{1, 2, 3, 4}));
   // The CRC covers the 128 information bytes, not the magic, and is stored most significant first.
-  const uint16_t crc = referenceCrc(f, 4, 132);
+  const uint16_t crc = referenceCrc(f.data() + 4, 128);
   EXPECT_EQ(f[132], crc >> 8);
   EXPECT_EQ(f[133], crc & 0xFF);
 }
@@ -84,7 +69,7 @@ TEST(EspmFraming, PublicFrameLayout) {
   const std::vector<uint8_t> head{0xAC, 0x45, 0x0F, 0x28, 0x12, 0x34, 0x00, 0x03, 0xDE, 0xAD, 0xBE, 0xEF};
   EXPECT_EQ(std::vector<uint8_t>(f.begin(), f.begin() + 12), head);
   // {16'b0, crc16} over the header and the payload.
-  const uint16_t crc = referenceCrc(f, 4, 20);
+  const uint16_t crc = referenceCrc(f.data() + 4, 16);
   EXPECT_EQ(std::vector<uint8_t>(f.begin() + 20, f.end()),
             (std::vector<uint8_t>{0, 0, static_cast<uint8_t>(crc >> 8), static_cast<uint8_t>(crc & 0xFF)}));
   // The information packet is page 0, length 32.

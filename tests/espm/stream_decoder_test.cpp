@@ -13,16 +13,13 @@
 #include "robot/espm/Crc16.h"
 #include "robot/espm/Framing.h"
 #include "robot/espm/StreamDecoder.h"
+#include "tests/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 
-namespace {
+using espm_test::randomPacket;
 
-Packet randomPacket(std::mt19937_64& rng) {
-  Quadlets q;
-  for (int i = 0; i < kInformationQuadlets; ++i) q[i] = static_cast<uint32_t>(rng()) & usedBits(i);
-  return decodePacket(q);
-}
+namespace {
 
 // FNV-1a over payload quadlets: identifies a frame's content in the expected and decoded lists.
 uint64_t hashQuadlets(std::span<const uint32_t> q) {
