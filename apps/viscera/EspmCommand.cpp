@@ -257,7 +257,7 @@ void addEspmCommand(CLI::App& app, std::function<int()>& action) {
       "idle time as zero bytes; a packet's time is its byte offset * 8 / line rate. Joint values are encoder counts\n"
       "divided by the counts per unit (rad, and m for the insertion, joint 3).");
   decode->add_option("CAPTURE", d->capture, "the capture file")->required();
-  decode->add_option("--csv", d->csv, "write one row per packet: t, offset, encoder counts and overflow flags, joints, pots "
+  decode->add_option("--csv", d->csv, "write one row per packet: t, offset, encoder counts and overflow flags, joints and joint velocities, pots "
                                       "and parity flags, buttons, instrument id, velocity quadlets");
   decode->add_option("--json", d->json, "write the summary as JSON");
   decode->add_option("--framing", d->framing, "dissertation, public or auto (decided from the first frames)")
@@ -274,7 +274,8 @@ void addEspmCommand(CLI::App& app, std::function<int()>& action) {
   synth->footer(
       "Packet k starts at byte round(k * line rate / (8 * rate)), idle zero bytes between packets; its joints are\n"
       "the log (t,q1..q6; rad, m for q3) sampled at its time after the log's first sample. Potentiometers read each\n"
-      "joint across its PSM limits (0..4095); the jaw reads 0; velocity quadlets say \"no measurement\".");
+      "joint across its PSM limits (0..4095); the jaw reads 0. Velocity quadlets hold the Rev 6 registers of each\n"
+      "joint's simulated encoder (one edge per count) read at the packet's time.");
   synth->add_option("--joints", s->joints, "joint log CSV: t,q1,...,q6 within the PSM's limits")->required();
   synth->add_option("--out", s->out, "the capture file to write")->required();
   synth->add_option("--framing", s->framing, "dissertation or public")->capture_default_str();
