@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 
 #include "engine/core/Error.h"
 
@@ -20,6 +21,13 @@ std::vector<std::string> words(const std::string& s) {
   }
   if (!cur.empty()) out.push_back(cur);
   return out;
+}
+
+void requireParentFolder(const std::string& path, const std::string& option) {
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty() && !std::filesystem::is_directory(parent, ec))
+    throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
 }
 
 std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape) {

@@ -13,6 +13,10 @@ std::vector<std::string> words(const std::string& s);
 // "xmin ymin zmin xmax ymax zmax". Throws viscera::Error naming `option` and showing `shape`.
 std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape);
 
+// Throws viscera::Error "PATH: OPTION: the folder F does not exist" unless the folder `path` is to
+// be written in exists; commands check this before doing any work, so a typo costs nothing.
+void requireParentFolder(const std::string& path, const std::string& option);
+
 // `s` as a quoted JSON string: quotes and backslashes escaped, newlines as \n, other control
 // characters as blanks.
 std::string jsonString(const std::string& s);

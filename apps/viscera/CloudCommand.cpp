@@ -53,13 +53,6 @@ std::string vec3(const Eigen::Vector3d& v) {
   return o.str();
 }
 
-// A folder that must exist for `path` to be written.
-void requireParentFolder(const std::string& path, const std::string& what) {
-  const fs::path parent = fs::path(path).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent))
-    throw Error(SourceLoc{path}, "cannot write the " + what + ": the folder " + parent.string() + " does not exist");
-}
-
 struct FrameResult {
   double time = 0;
   std::string input, output;
@@ -145,7 +138,7 @@ int runPrep(PrepCommandOptions o) {
   if (o.format != "pcd" && o.format != "ply") throw Error("--format: must be pcd or ply, got '" + o.format + "'");
   if (!(o.nameTimeScale > 0) || !std::isfinite(o.nameTimeScale))
     throw Error("--name-time-scale: must be a positive number");
-  if (!o.report.empty()) requireParentFolder(o.report, "report");
+  if (!o.report.empty()) cli::requireParentFolder(o.report, "--report");
   const CloudEncoding encoding = o.ascii ? CloudEncoding::Ascii : CloudEncoding::Binary;
 
   std::vector<FrameResult> results;
@@ -153,7 +146,7 @@ int runPrep(PrepCommandOptions o) {
   if (single) {
     if (!isCloudFileName(o.out))
       throw Error(SourceLoc{o.out}, "the output of a single cloud must be a .pcd or .ply file name");
-    requireParentFolder(o.out, "prepared cloud");
+    cli::requireParentFolder(o.out, "OUT");
     PointCloud prepared;
     FrameResult f = prepareFrame(o, o.in, 0.0, prepared);
     writeCloud(o.out, prepared, encoding);

@@ -357,12 +357,6 @@ class ResidualWriter {
   std::vector<std::pair<double, std::string>> cloudEntries_, surfaceEntries_;
 };
 
-void requireParentFolder(const std::string& path, const std::string& option) {
-  const fs::path parent = fs::path(path).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent))
-    throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
-}
-
 // ---------------------------------------------------------------------------------------------
 
 int runDistance(const DistanceCommandOptions& o) {
@@ -374,8 +368,8 @@ int runDistance(const DistanceCommandOptions& o) {
   if (!(o.cloudScale > 0) || !std::isfinite(o.cloudScale)) throw Error("--cloud-scale: must be a positive number");
   if (o.time && !std::isfinite(*o.time)) throw Error("--time: must be a finite number");
   if (!(o.nameTimeScale > 0) || !std::isfinite(o.nameTimeScale)) throw Error("--name-time-scale: must be a positive number");
-  if (!o.out.empty()) requireParentFolder(o.out, "--out");
-  if (!o.summary.empty()) requireParentFolder(o.summary, "--summary");
+  if (!o.out.empty()) cli::requireParentFolder(o.out, "--out");
+  if (!o.summary.empty()) cli::requireParentFolder(o.summary, "--summary");
   if (!o.residuals.empty() && fs::exists(o.residuals) && !fs::is_directory(o.residuals))
     throw Error(SourceLoc{o.residuals}, "--residuals: must be a folder, and this is a file");
 

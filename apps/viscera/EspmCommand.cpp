@@ -83,13 +83,6 @@ uint32_t instrumentIdOption(const std::string& text) {
   return static_cast<uint32_t>(value);
 }
 
-// A folder that must exist for `path` to be written (checked before anything is written).
-void requireParentFolder(const std::string& path, const std::string& option) {
-  const fs::path parent = fs::path(path).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent))
-    throw Error(option + " " + path + ": the folder " + parent.string() + " does not exist");
-}
-
 std::string hex32(uint32_t v) {
   char text[12];
   std::snprintf(text, sizeof text, "0x%08X", v);
@@ -178,8 +171,8 @@ std::string summaryJson(const Capture& c, const PacketCounts& counts) {
 int runDecode(const DecodeOptions& o) {
   const CaptureOptions options{framingOption(o.framing), lineRateOption(o.lineRate)};
   const JointScale scale = scaleOption(o.countsPerUnit);
-  if (!o.csv.empty()) requireParentFolder(o.csv, "--csv");
-  if (!o.json.empty()) requireParentFolder(o.json, "--json");
+  if (!o.csv.empty()) cli::requireParentFolder(o.csv, "--csv");
+  if (!o.json.empty()) cli::requireParentFolder(o.json, "--json");
 
   const Capture capture = readCapture(o.capture, options);
   const PacketCounts counts = countPackets(capture);
@@ -212,7 +205,7 @@ int runSynth(const SynthOptions& o) {
   options.scale = scaleOption(o.countsPerUnit);
   options.instrumentId = instrumentIdOption(o.instrumentId);
   options.rate = o.rate;
-  requireParentFolder(o.out, "--out");
+  cli::requireParentFolder(o.out, "--out");
 
   const robot::JointTrajectory joints = robot::readJointCsv(o.joints, robot::kPsmDof);
   const robot::SerialChain psm = robot::psmLargeNeedleDriver();

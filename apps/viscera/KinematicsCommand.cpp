@@ -11,9 +11,11 @@
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include "engine/core/Error.h"
+#include "engine/core/Units.h"
 #include "io/scene/Transform.h"
 #include "motion/Trajectory.h"
 #include "robot/kinematics/JointTrajectory.h"
@@ -27,12 +29,15 @@ struct KinematicsOptions {
   bool allowLimits = false;
 };
 
-// Metres per unit of the poses.
+// Metres per unit of the poses (any length unit the scenes accept: m, cm, mm, um, ...).
 double metresPer(const std::string& unit) {
-  if (unit == "m") return 1;
-  if (unit == "cm") return 1e-2;
-  if (unit == "mm") return 1e-3;
-  throw Error("--unit: " + viscera::quoted(unit) + " is not a length unit (m, cm or mm)");
+  try {
+    const Unit u = parseUnit(unit);
+    if (u.dim == Dimension::length()) return u.si;
+  } catch (const std::invalid_argument&) {
+    // reported below, as for a unit of another dimension
+  }
+  throw Error("--unit: " + viscera::quoted(unit) + " is not a length unit (m, cm, mm, ...)");
 }
 
 // Robot base (m) -> pose frame (the transform's frame, in `unit`): x = T (x_robot / metresPer).
@@ -106,7 +111,7 @@ int runIk(const KinematicsOptions& o) {
 
 void addFrameOptions(CLI::App* cmd, KinematicsOptions& o) {
   cmd->add_option("--transform", o.transform, "rigid transform file robot -> pose frame (4 x 4, translation in --unit)");
-  cmd->add_option("--unit", o.unit, "length unit of the poses and the transform: m, cm or mm")->capture_default_str();
+  cmd->add_option("--unit", o.unit, "length unit of the poses and the transform (m, cm, mm, ...)")->capture_default_str();
   cmd->add_flag("--allow-limits", o.allowLimits, "accept joint values outside the PSM's limits");
 }
 

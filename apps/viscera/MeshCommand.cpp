@@ -46,10 +46,8 @@ std::string point(const Eigen::Vector3d& p) {
 
 // An output file must go into an existing folder; checked before the meshing, which can take a while.
 void requireOutputFolder(const std::string& path, const char* option) {
-  const fs::path parent = fs::path(path).parent_path();
+  cli::requireParentFolder(path, option);
   std::error_code ec;
-  if (!parent.empty() && !fs::is_directory(parent, ec))
-    throw Error(std::string(option) + " " + path + ": the folder " + parent.string() + " does not exist");
   if (fs::is_directory(path, ec)) throw Error(std::string(option) + " " + path + ": is a folder");
 }
 
