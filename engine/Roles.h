@@ -103,11 +103,21 @@ class OdeSolver {
 };
 
 // Sets a kinematically driven state (an instrument) for time t: called with the start time before
-// the first step and with the end time of each step before it is integrated.
+// the first step and with the end time of each step before it is integrated. `dt` is the step
+// that ends at t (the scene's step before the first one): a driver's velocity is the mean over it.
 class Driver {
  public:
   virtual ~Driver() = default;
-  virtual void drive(double t) = 0;
+  virtual void drive(double t, double dt) = 0;
+};
+
+// Changes the state after the solve and the contact constraints of a step, before mappings and
+// observers read it (a learned correction of the simulated state). Corrections run in scene order,
+// then those a library caller added to the Simulation.
+class Correction {
+ public:
+  virtual ~Correction() = default;
+  virtual void correct(double t, int stepIndex) = 0;
 };
 
 // Carries the state of a mechanical object to another representation at the end of each step

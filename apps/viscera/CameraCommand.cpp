@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/Run.h"
 #include "engine/Simulation.h"
 #include "engine/core/Error.h"
 #include "engine/core/Registry.h"
@@ -39,6 +40,7 @@ struct AttributeOption {
 
 struct CameraOptions {
   std::string scene, out, name = "camera";
+  std::vector<std::string> sets;  // --set ADDRESS=VALUE edits of the scene
   double time = 0;
   int steps = -1;
   bool quiet = false, ascii = false, tissueOnly = false;
@@ -145,6 +147,7 @@ std::string frameSummary(Component& camera, const Scene& scene) {
 
 int runCamera(const CameraOptions& o) {
   SceneDesc desc = io::readScene(o.scene);
+  for (const auto& a : o.sets) desc.applySetting(a);
   std::vector<std::string> notes;
   dropOtherOutputs(desc.root, notes);
   std::vector<std::string> given;
@@ -174,16 +177,18 @@ int runCamera(const CameraOptions& o) {
     for (const auto& n : notes) std::cerr << n << "\n";
     for (const auto& n : scene->notes()) std::cerr << n << "\n";
   }
-  const int total = o.steps >= 0 ? o.steps : static_cast<int>(std::llround(o.time / scene->dt()));
-  sim.begin();
-  std::optional<Diverged> failure;
-  for (int i = 0; i < total && !failure; ++i) failure = sim.step();
-  sim.end();
+  RunOptions ro;
+  if (o.steps >= 0) ro.steps = o.steps;
+  else ro.time = o.time;
+  ro.recordWrench = false;
+  ProgressLine progress;
+  if (!o.quiet) ro.observers.push_back(&progress);
+  const RunResult r = run(sim, ro);
 
   for (Component* c : scene->all<Component>())
     if (c->typeName() == kCameraTag) std::cerr << frameSummary(*c, *scene) << "\n";
-  if (failure) {
-    std::cerr << o.scene << ": " << failure->str() << "\n";
+  if (r.failure) {
+    std::cerr << o.scene << ": " << r.failure->str() << "\n";
     return kExitDiverged;
   }
   if (!o.quiet)
@@ -208,6 +213,7 @@ void addCameraCommand(CLI::App& app, std::function<int()>& action) {
       ->check(CLI::NonNegativeNumber)
       ->excludes(steps);
   cmd->add_flag("--quiet", o->quiet, "no notes or run summary (the frame summary is still printed)");
+  cmd->add_option("--set", o->sets, "set a scene attribute, ADDRESS=VALUE (node/path/component.attribute); repeatable");
   o->nameOption = cmd->add_option("--name", o->name, "name of the added camera, and its folder under --out (camera)");
   for (AttributeOption& a : o->attributes) a.option = cmd->add_option(a.flag, a.value, a.help);
   o->asciiFlag = cmd->add_flag("--ascii", o->ascii, "ASCII files instead of binary");

@@ -187,6 +187,56 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
   });
 }
 
+void SurfaceCollisionModel::saveState(StateWriter& out) const {
+  // A contact's sphere is written as its index among the scene's spheres.
+  const auto spheres = scene().all<SphereCollisionModel>();
+  out.put(penalty_);
+  out.put(k_);
+  out.count(static_cast<std::int64_t>(contacts_.size()));
+  for (const Contact& c : contacts_) {
+    out.put(static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()));
+    out.put(c.feature);
+    out.put(c.count);
+    for (int k = 0; k < 3; ++k) out.put(c.nodes[k]);
+    for (int k = 0; k < 3; ++k) out.put(c.w[k]);
+    out.put(c.n);
+    out.put(c.p0);
+    out.put(c.gap0);
+    out.put(c.force);
+    out.put(c.active);
+  }
+}
+
+void SurfaceCollisionModel::loadState(StateReader& in) {
+  const auto spheres = scene().all<SphereCollisionModel>();
+  const int nodes = state_->size();
+  in.get(penalty_);
+  in.get(k_);
+  const std::int64_t n = in.count();
+  if (static_cast<size_t>(n) > in.remaining()) in.mismatch("more contacts than it holds");
+  std::vector<Contact> cs(n);
+  for (Contact& c : cs) {
+    int sphere = -1;
+    in.get(sphere);
+    if (sphere < 0 || sphere >= static_cast<int>(spheres.size())) in.mismatch("a contact with a sphere it does not have");
+    c.sphere = spheres[sphere];
+    c.surface = this;
+    in.get(c.feature);
+    in.get(c.count);
+    for (int k = 0; k < 3; ++k) in.get(c.nodes[k]);
+    for (int k = 0; k < 3; ++k) in.get(c.w[k]);
+    if (c.count < 1 || c.count > 3) in.mismatch("a contact with " + std::to_string(c.count) + " nodes");
+    for (int k = 0; k < c.count; ++k)
+      if (c.nodes[k] < 0 || c.nodes[k] >= nodes) in.mismatch("a contact on node " + std::to_string(c.nodes[k]));
+    in.get(c.n);
+    in.get(c.p0);
+    in.get(c.gap0);
+    in.get(c.force);
+    in.get(c.active);
+  }
+  contacts_ = std::move(cs);
+}
+
 void SurfaceCollisionModel::setContacts(std::vector<Contact> c, const ContactSettings& s) {
   contacts_ = std::move(c);
   penalty_ = s.response == ContactSettings::Response::Penalty;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
+#include "engine/State.h"
 #include "engine/core/Component.h"
 
 namespace viscera {
@@ -77,11 +78,14 @@ class SphereCollisionModel : public Component {
 
 // The boundary surface of the tetrahedra of a deformable body (SOFA's TriangleCollisionModel;
 // LineCollisionModel and PointCollisionModel use the same surface with fewer features).
-class SurfaceCollisionModel : public Component, public ForceField {
+class SurfaceCollisionModel : public Component, public ForceField, public Stateful {
  public:
   enum class Kind { Points, Lines, Triangles };
   using Component::Component;
   void init() override;
+  // The contacts of the last step and their response.
+  void saveState(StateWriter& out) const override;
+  void loadState(StateReader& in) override;
 
   Kind kind() const { return kind_; }
   MechanicalObject& mstate() const override { return *state_; }
@@ -151,10 +155,21 @@ class CollisionResponse : public Component {
 
 // One step's collision handling for the whole scene: SOFA's CollisionPipeline (DefaultPipeline)
 // with its broad phase, narrow phase, intersection method and response.
-class CollisionPipeline : public Component {
+class CollisionPipeline : public Component, public Stateful {
  public:
   using Component::Component;
   void init() override;
+  // Contact statistics over the run so far.
+  void saveState(StateWriter& out) const override {
+    out.put(lastPenetration_);
+    out.put(maxPenetration_);
+    out.put(maxContacts_);
+  }
+  void loadState(StateReader& in) override {
+    in.get(lastPenetration_);
+    in.get(maxPenetration_);
+    in.get(maxContacts_);
+  }
   const ContactSettings& settings() const { return settings_; }
   // Finds this step's contacts (instrument at the step end, tissue at the step start).
   void detect();

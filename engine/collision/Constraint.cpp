@@ -39,18 +39,20 @@ class ConstraintCorrection : public Component {
     auto* ode = node().find<OdeSolver>();
     if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver or StaticSolver) in its node");
     scene().initComponent(dynamic_cast<Component&>(*ode));
+    ode_ = ode;
     auto r = ode->stepResponse(scene().dt());
     if (!r) throw error("the ODE solver in its node has no linear system to correct");
-    resp_ = *r;
-    if (mode_ == Mode::Uncoupled && !(resp_.mFactor > 0))
+    if (mode_ == Mode::Uncoupled && !(r->mFactor > 0))
       throw error("the uncoupled (mass-only) compliance needs a dynamic solver (EulerImplicitSolver)");
-    if (mode_ == Mode::Precomputed) factorize(sys_->state().x0);
+    respond(scene().dt());
   }
 
   MechanicalObject& mstate() const { return sys_->state(); }
 
-  // Called once per step before the solve: refactors when the compliance follows the state.
-  void prepare() {
+  // Called once per step of size h before the solve: refactors when the compliance follows the
+  // state, or when the step size changed since the precomputation.
+  void prepare(double h) {
+    if (h != respDt_) respond(h);
     if (mode_ == Mode::LinearSolver) {
       factorize(sys_->state().x);
       columns_.clear();
@@ -121,17 +123,40 @@ class ConstraintCorrection : public Component {
     return columns_.emplace(v, std::move(col)).first->second;
   }
 
+  // The step response for steps of size h (and the precomputed compliance for it).
+  void respond(double h) {
+    auto r = ode_->stepResponse(h);
+    if (!r) throw error("the ODE solver in its node has no linear system to correct");
+    resp_ = *r;
+    respDt_ = h;
+    if (mode_ == Mode::Precomputed) {
+      factorize(sys_->state().x0);
+      columns_.clear();
+    }
+  }
+
   Mode mode_ = Mode::Precomputed;
   std::unique_ptr<MechanicalSystem> sys_;
+  OdeSolver* ode_ = nullptr;
   StepResponse resp_;
+  double respDt_ = 0;
   BlockSparseMatrix A_;
   CholmodSolver chol_;
   std::unordered_map<int, Eigen::MatrixX3d> columns_;
 };
 
-class GenericConstraintSolver : public Component, public ConstraintSolver {
+class GenericConstraintSolver : public Component, public ConstraintSolver, public Stateful {
  public:
   using Component::Component;
+  // Each step starts from zero impulses: only the last step's statistics carry over.
+  void saveState(StateWriter& out) const override {
+    out.put(iterations_);
+    out.put(residual_);
+  }
+  void loadState(StateReader& in) override {
+    in.get(iterations_);
+    in.get(residual_);
+  }
   void init() override {
     maxIt_ = static_cast<int>(attrs_.integer("maxIterations"));
     tol_ = attrs_.real("tolerance");
@@ -179,7 +204,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver {
     MechanicalObject& s = surf.mstate();
     std::vector<Contact>& cs = surf.contacts();
     const int m = static_cast<int>(cs.size());
-    cc.prepare();
+    cc.prepare(h);
     // Rows R_i = [-n^T; t1^T; t2^T] acting on the contact point.
     std::vector<Eigen::Matrix3d> R(m);
     std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());

@@ -95,6 +95,16 @@ class Node {
   Node& addChild(std::string name, SourceLoc loc);
   Component& addComponent(std::unique_ptr<Component> c);
   std::string path() const;  // "/root/Beam"
+  // An inactive node (`activated="false"`) is built and validated but not simulated: it and its
+  // sub-nodes are left out of every role lookup and of init.
+  bool active() const { return active_; }
+  void setActive(bool a) { active_ = a; }
+  // Whether this node and all its ancestors are active.
+  bool activeInTree() const {
+    for (const Node* n = this; n; n = n->parent_)
+      if (!n->active_) return false;
+    return true;
+  }
 
   // The first component of role T in this node, or nullptr.
   template <class T>
@@ -113,9 +123,10 @@ class Node {
     }
     return nullptr;
   }
-  // Every component of role T in this node and its descendants, depth first.
+  // Every component of role T in this node and its active descendants, depth first.
   template <class T>
   void collect(std::vector<T*>& out) const {
+    if (!active_) return;
     for (const auto& c : components_)
       if (auto* t = dynamic_cast<T*>(c.get())) out.push_back(t);
     for (const auto& ch : children_) ch->collect(out);
@@ -127,6 +138,7 @@ class Node {
   SourceLoc loc_;
   std::vector<std::unique_ptr<Node>> children_;
   std::vector<std::unique_ptr<Component>> components_;
+  bool active_ = true;
 };
 
 }  // namespace viscera

@@ -85,6 +85,11 @@ struct Builder {
     if (!isRoot)
       for (const char* rootOnly : {"dt", "gravity", "units", "time"})
         if (na.isSet(rootOnly)) throw na.error(rootOnly, "only the root node may set this");
+    if (!na.boolean("activated")) {
+      node.setActive(false);
+      notes.push_back(el.loc.str() + ": note: node '" + node.name() + "' is inactive (activated=\"false\"): it and its "
+                      "sub-nodes are not simulated");
+    }
     for (const auto& child : el.children) {
       if (child.tag == "Node") {
         Node& sub = node.addChild(nameOf(child, "Node"), child.loc);
@@ -183,6 +188,7 @@ std::string Scene::outputPath(const std::string& p) const {
 
 namespace {
 void initTree(Scene& s, Node& n) {
+  if (!n.active()) return;
   for (const auto& c : n.components()) s.initComponent(*c);
   for (const auto& ch : n.children()) initTree(s, *ch);
 }
@@ -241,7 +247,10 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
   bool bare = parts.size() == 1 && !absolute;
   for (Node* n = node; n; n = bare ? n->parent() : nullptr) {
     for (const auto& c : n->components())
-      if (c->name() == target) return *c;
+      if (c->name() == target) {
+        if (!c->node().activeInTree()) throw fail("'" + target + "' is in the inactive node " + c->node().path());
+        return *c;
+      }
   }
   throw fail("no component named '" + target + "'" + (bare ? " in this node or its ancestors" : " in " + node->path()));
 }

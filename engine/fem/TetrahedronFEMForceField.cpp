@@ -142,6 +142,22 @@ double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) cons
   return s;
 }
 
+void TetrahedronFEMForceField::saveState(StateWriter& out) const {
+  out.put(rot_);
+  out.put(xLast_);
+}
+
+void TetrahedronFEMForceField::loadState(StateReader& in) {
+  std::vector<Eigen::Matrix3d> rot;
+  Eigen::Matrix3Xd xLast;
+  in.get(rot);
+  in.get(xLast);
+  if (rot.size() != rot_.size())
+    in.mismatch(std::to_string(rot.size()) + " element frames where this force field has " + std::to_string(rot_.size()));
+  rot_ = std::move(rot);
+  xLast_ = std::move(xLast);
+}
+
 std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3Xd& x) const {
   std::vector<int> bad;
   for (int e = 0; e < tets_.cols(); ++e) {

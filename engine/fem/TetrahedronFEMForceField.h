@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
+#include "engine/State.h"
 #include "engine/core/Component.h"
 #include "engine/fem/TetKernel.h"
 
@@ -12,11 +13,14 @@ namespace viscera {
 
 class Registry;
 
-class TetrahedronFEMForceField : public Component, public ForceField {
+class TetrahedronFEMForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
   void init() override;
   MechanicalObject& mstate() const override { return *state_; }
+  // The element frames and positions of the last linearisation (addDForce and addStiffness use them).
+  void saveState(StateWriter& out) const override;
+  void loadState(StateReader& in) override;
 
   void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override;
   void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;

@@ -7,6 +7,7 @@
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "io/scene/InputCache.h"
 #include "io/surface/SurfaceMesh.h"
 
 namespace viscera {
@@ -54,7 +55,7 @@ void VisualModel::fromFile() {
   if (!std::filesystem::exists(path)) throw error("filename", "surface file '" + path + "' does not exist");
   io::SurfaceMesh s;
   try {
-    s = io::readSurface(path);
+    s = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
   } catch (const Error& e) {
     throw error("filename", e.what());
   }

@@ -60,6 +60,18 @@ void MechanicalObject::init() {
   f = Eigen::Matrix3Xd::Zero(3, x.cols());
 }
 
+void MechanicalObject::loadState(StateReader& in) {
+  Eigen::Matrix3Xd nx, nv, nf;
+  in.get(nx);
+  in.get(nv);
+  in.get(nf);
+  if (nx.cols() != size() || nv.cols() != size() || nf.cols() != size())
+    in.mismatch(std::to_string(nx.cols()) + " nodes where this object has " + std::to_string(size()));
+  x = std::move(nx);
+  v = std::move(nv);
+  f = std::move(nf);
+}
+
 bool MechanicalObject::field(const std::string& name, FieldValue& out) const {
   const Eigen::Matrix3Xd* m = nullptr;
   if (name == "position") m = &x;

@@ -4,17 +4,25 @@
 #include <Eigen/Core>
 
 #include "engine/Roles.h"
+#include "engine/State.h"
 #include "engine/core/Component.h"
 
 namespace viscera {
 
 class Registry;
 
-class MechanicalObject : public Component {
+class MechanicalObject : public Component, public Stateful {
  public:
   explicit MechanicalObject(BuildContext& ctx) : Component(ctx) {}
   void init() override;
   bool field(const std::string& name, FieldValue& out) const override;
+  // x, v and f; the rest positions belong to the model.
+  void saveState(StateWriter& out) const override {
+    out.put(x);
+    out.put(v);
+    out.put(f);
+  }
+  void loadState(StateReader& in) override;
 
   int size() const { return static_cast<int>(x.cols()); }
 

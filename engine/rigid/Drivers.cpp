@@ -9,6 +9,7 @@
 #include "engine/core/Scene.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
+#include "io/scene/InputCache.h"
 #include "motion/Trajectory.h"
 
 namespace viscera {
@@ -24,13 +25,13 @@ class TrajectoryDriver : public Component, public Driver {
     body_->driven = true;
     const std::string path = scene().resolvePath(attrs_.str("filename"));
     try {
-      traj_ = motion::readTrajectoryCsv(path);
+      traj_ = io::cachedRead<motion::Trajectory>(path, motion::readTrajectoryCsv);
     } catch (const Error& e) {
       throw fileErrorFor(e, *this, "filename");
     }
     offset_ = attrs_.real("timeOffset");
     place_ = readPlacement(*this);
-    drive(scene().startTime());
+    drive(scene().startTime(), scene().dt());
     body_->p0 = body_->p;
     body_->q0 = body_->q;
   }
@@ -38,21 +39,21 @@ class TrajectoryDriver : public Component, public Driver {
   // each step's end time): velocity x dt is the step's displacement, which the friction
   // constraints compare the tissue's motion with. Within a sample interval this is the
   // interpolation's velocity; at a sample time it is that of the interval ending there.
-  void drive(double t) override {
-    const double tt = t + offset_, h = scene().dt();
-    const motion::Pose pose = traj_.sample(tt), before = traj_.sample(tt - h);
+  void drive(double t, double h) override {
+    const double tt = t + offset_;
+    const motion::Pose pose = traj_->sample(tt), before = traj_->sample(tt - h);
     body_->setMotion(place_.point(pose.p), place_.rotation(pose.q), place_.vector((pose.p - before.p) / h),
                      place_.vector(rotationVector(before.q, pose.q) / h));
   }
   bool field(const std::string& name, FieldValue& out) const override {
-    if (name == "duration") out.values = {traj_.end() - offset_};
+    if (name == "duration") out.values = {traj_->end() - offset_};
     else return false;
     return true;
   }
 
  private:
   RigidObject* body_ = nullptr;
-  motion::Trajectory traj_;
+  std::shared_ptr<const motion::Trajectory> traj_;  // shared by every scene that replays the file
   double offset_ = 0;
   Placement place_;
 };
@@ -81,17 +82,16 @@ class LinearMovementConstraint : public Component, public Driver {
       r_.emplace_back(m[6 * k + 3], m[6 * k + 4], m[6 * k + 5]);
     }
     relative_ = attrs_.boolean("relativeMovements");
-    drive(scene().startTime());
+    drive(scene().startTime(), scene().dt());
   }
   // Piecewise-linear displacement and rotation vector between keys, held outside them. The
   // velocity is the mean over the step that ends at t (drive is called with each step's end
   // time): velocity x dt is the step's displacement, which the friction constraints compare the
   // tissue's motion with. Within a key interval this is the interval's rate; at a key time it is
   // that of the interval ending there, not of the next one.
-  void drive(double t) override {
+  void drive(double t, double h) override {
     Eigen::Vector3d d, r, dBefore, rBefore;
     at(t, d, r);
-    const double h = scene().dt();
     at(t - h, dBefore, rBefore);
     const Eigen::Vector3d vd = (d - dBefore) / h, vr = (r - rBefore) / h;
     const Eigen::Quaterniond rot = r.norm() > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(r.norm(), r.normalized()))

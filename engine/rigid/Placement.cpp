@@ -5,6 +5,7 @@
 #include "engine/core/Component.h"
 #include "engine/core/Registry.h"
 #include "engine/core/Scene.h"
+#include "io/scene/InputCache.h"
 #include "io/scene/Transform.h"
 
 namespace viscera {
@@ -27,7 +28,7 @@ Placement readPlacement(const Component& c) {
   if (attrs.isSet("transform")) {
     const std::string path = c.scene().resolvePath(attrs.str("transform"));
     try {
-      file = readTransform(path);
+      file = *io::cachedRead<RigidTransform>(path, readTransform);
     } catch (const Error& e) {
       throw fileErrorFor(e, c, "transform");
     }

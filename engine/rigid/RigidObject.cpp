@@ -46,6 +46,28 @@ void RigidObject::setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond
   w = ang;
 }
 
+void RigidObject::saveState(StateWriter& out) const {
+  out.put(p);
+  out.put(q.coeffs());
+  out.put(v);
+  out.put(w);
+  out.put(force);
+  out.put(torque);
+  out.put(contacts);
+}
+
+void RigidObject::loadState(StateReader& in) {
+  Eigen::Vector4d qc;
+  in.get(p);
+  in.get(qc);
+  q.coeffs() = qc;
+  in.get(v);
+  in.get(w);
+  in.get(force);
+  in.get(torque);
+  in.get(contacts);
+}
+
 bool RigidObject::field(const std::string& name, FieldValue& out) const {
   if (name == "position") out.values = {p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()};
   else if (name == "rest_position") out.values = {p0.x(), p0.y(), p0.z(), q0.x(), q0.y(), q0.z(), q0.w()};

@@ -7,15 +7,19 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "engine/State.h"
 #include "engine/core/Component.h"
 
 namespace viscera {
 
-class RigidObject : public Component {
+class RigidObject : public Component, public Stateful {
  public:
   explicit RigidObject(BuildContext& ctx) : Component(ctx) {}
   void init() override;
   bool field(const std::string& name, FieldValue& out) const override;
+  // Pose, velocity and the last contact wrench.
+  void saveState(StateWriter& out) const override;
+  void loadState(StateReader& in) override;
 
   // Sets the pose and velocity (world frame; angular velocity as a vector).
   void setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,

@@ -8,6 +8,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
 #include "io/mesh/Mesh.h"
+#include "io/scene/InputCache.h"
 
 namespace viscera {
 
@@ -121,8 +122,11 @@ class MeshLoader : public Component, public Topology {
     std::string path = scene().resolvePath(attrs_.str("filename"));
     if (!std::filesystem::exists(path)) throw error("filename", "mesh file '" + path + "' does not exist");
     try {
-      mesh_ = io::readVolumeMesh(path);
-      if (mesh_.tets.cols() > 0) io::checkTetMesh(mesh_, path);
+      mesh_ = *io::cachedRead<io::VolumeMesh>(path, [](const std::string& p) {
+        io::VolumeMesh m = io::readVolumeMesh(p);
+        if (m.tets.cols() > 0) io::checkTetMesh(m, p);
+        return m;
+      });
     } catch (const Error& e) {
       throw error("filename", e.what());
     }

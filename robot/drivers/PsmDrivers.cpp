@@ -12,6 +12,7 @@
 #include "engine/core/Scene.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
+#include "io/scene/InputCache.h"
 #include "robot/espm/Capture.h"
 #include "robot/kinematics/JointTrajectory.h"
 #include "robot/kinematics/PsmKinematics.h"
@@ -28,8 +29,8 @@ class JointReplayDriver : public Component, public Driver {
  public:
   using Component::Component;
 
-  void drive(double t) override {
-    const double tt = t + offset_, h = scene().dt();
+  void drive(double t, double h) override {
+    const double tt = t + offset_;
     joints_.sample(tt - h, q_);
     const Eigen::Isometry3d before = chain_.forwardKinematics(q_, frames_);
     joints_.sample(tt, q_);
@@ -75,7 +76,7 @@ class JointReplayDriver : public Component, public Driver {
     metresToScene_ = 1.0 / scene().units().siOf(Dimension::length());
     q_.resize(chain_.dof());
     frames_.resize(chain_.dof());
-    drive(scene().startTime());
+    drive(scene().startTime(), scene().dt());
     body_->p0 = body_->p;
     body_->q0 = body_->q;
   }
@@ -98,7 +99,8 @@ class PsmJointDriver : public JointReplayDriver {
     const std::string path = scene().resolvePath(attrs_.str("filename"));
     robot::JointTrajectory joints;
     try {
-      joints = robot::readJointCsv(path, chain_.dof());
+      const int dof = chain_.dof();
+      joints = *io::cachedRead<robot::JointTrajectory>(path, [dof](const std::string& p) { return robot::readJointCsv(p, dof); });
     } catch (const Error& e) {
       throw fileErrorFor(e, *this, "filename");
     }

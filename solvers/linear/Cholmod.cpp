@@ -1,5 +1,7 @@
 #include <cholmod.h>
 
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 
 #include "solvers/linear/LinearSolver.h"
@@ -73,6 +75,18 @@ struct CholmodSolver::Impl {
   }
 };
 
+namespace {
+// Debian's serial OpenBLAS (the BLAS CHOLMOD's supernodal path calls) is built without locking:
+// two threads in it at once corrupt each other's buffers, and simulations run in parallel threads
+// gave results that changed from run to run. Supernodal factorisations and solves, and the
+// orderings (METIS keeps global state), therefore take this lock; simplicial ones call no BLAS
+// and run in parallel.
+std::mutex& blasMutex() {
+  static std::mutex m;
+  return m;
+}
+}  // namespace
+
 CholmodSolver::CholmodSolver() : impl_(new Impl()) {}
 CholmodSolver::~CholmodSolver() { delete impl_; }
 
@@ -80,6 +94,7 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
   Impl& d = *impl_;
   if (!d.A || d.rowStart != M.rowStart() || d.cols != M.cols()) {
     d.buildPattern(M);
+    std::lock_guard<std::mutex> lock(blasMutex());
     d.L = cholmod_analyze(d.A, &d.common);
     ++analyses_;
     if (!d.L) {
@@ -90,6 +105,8 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
   double* Ax = static_cast<double*>(d.A->x);
   const double* vals = M.values();
   for (size_t k = 0; k < d.blockToValue.size(); ++k) Ax[k] = vals[d.blockToValue[k]];
+  std::optional<std::lock_guard<std::mutex>> lock;
+  if (d.L->is_super) lock.emplace(blasMutex());
   if (!cholmod_factorize(d.A, d.L, &d.common) || d.common.status != CHOLMOD_OK) {
     message = d.common.status == CHOLMOD_NOT_POSDEF ? "matrix is not positive definite (CHOLMOD)"
                                                     : "CHOLMOD factorization failed";
@@ -113,7 +130,10 @@ void CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   Impl& d = *impl_;
   cholmod_dense* B = cholmod_allocate_dense(b.size(), 1, b.size(), CHOLMOD_REAL, &d.common);
   std::copy(b.data(), b.data() + b.size(), static_cast<double*>(B->x));
+  std::optional<std::lock_guard<std::mutex>> lock;
+  if (d.L->is_super) lock.emplace(blasMutex());
   cholmod_dense* X = cholmod_solve(CHOLMOD_A, d.L, B, &d.common);
+  lock.reset();
   x.resize(b.size());
   std::copy(static_cast<double*>(X->x), static_cast<double*>(X->x) + b.size(), x.data());
   cholmod_free_dense(&X, &d.common);

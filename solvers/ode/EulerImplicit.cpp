@@ -17,9 +17,18 @@ namespace viscera {
 
 namespace {
 
-class EulerImplicitSolver : public Component, public OdeSolver {
+class EulerImplicitSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
+  // The last velocity change (the next linear solve starts from it) and its iteration count.
+  void saveState(StateWriter& out) const override {
+    out.put(dv_);
+    out.put(lastIterations_);
+  }
+  void loadState(StateReader& in) override {
+    in.get(dv_);
+    in.get(lastIterations_);
+  }
   void init() override {
     rM_ = attrs_.real("rayleighMass");
     rK_ = attrs_.real("rayleighStiffness");

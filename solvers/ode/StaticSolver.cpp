@@ -31,9 +31,12 @@ Eigen::SparseMatrix<double> toSparse(const BlockSparseMatrix& A) {
   return M;
 }
 
-class StaticSolver : public Component, public OdeSolver {
+class StaticSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
+  // Newton starts from the current positions each step: only the statistics carry over.
+  void saveState(StateWriter& out) const override { out.put(iterationsDone_); }
+  void loadState(StateReader& in) override { in.get(iterationsDone_); }
   void init() override {
     iterations_ = static_cast<int>(attrs_.integer("newton_iterations"));
     absRes_ = attrs_.real("absolute_residual_tolerance_threshold");

@@ -255,3 +255,58 @@ TEST(Cli, DivergingAfterSeveralGoodSteps) {
 }
 
 }  // namespace
+
+TEST(Cli, SetChangesAnAttributeWithUnits) {
+  TempDir tmp;
+  const std::string coarse = sourcePath("scenes/gel_phantom_coarse.xml");
+  RunResult soft = runViscera({"run", coarse, "--out", tmp / "a", "--steps", "800", "--summary", tmp / "soft.json", "--quiet"});
+  ASSERT_EQ(soft.rc, 0) << soft;
+  RunResult stiff = runViscera({"run", coarse, "--out", tmp / "b", "--steps", "800", "--summary", tmp / "stiff.json", "--quiet",
+                                "--set", "phantom/fem.youngModulus=50 kPa", "--set", "phantom/ode.rayleighMass=0.2"});
+  ASSERT_EQ(stiff.rc, 0) << stiff;
+  // The same imposed instrument motion moves the ten times stiffer block differently.
+  EXPECT_NE(jsonNumber(slurp(tmp / "soft.json"), "max_displacement"), jsonNumber(slurp(tmp / "stiff.json"), "max_displacement"));
+  RunResult check = runViscera({"check", coarse, "--set", "phantom/fem.youngModulus=3.2 kPa"});
+  EXPECT_EQ(check.rc, 0) << check;
+}
+
+TEST(Cli, SetErrorsExitTwoNamingTheAddressAndCandidates) {
+  TempDir tmp;
+  const std::string coarse = sourcePath("scenes/gel_phantom_coarse.xml");
+  struct Case {
+    std::string set, expect1, expect2;
+  };
+  for (const Case& c : {Case{"dofs.rayleighMass=1", "--set dofs.rayleighMass", "unknown attribute"},
+                        Case{"phantom/fem.youngModulus=3 kPaa", "--set phantom/fem.youngModulus", "kPaa"},
+                        Case{"phantom/fem.youngModulous=3 kPa", "--set phantom/fem.youngModulous", "youngModulus"},
+                        Case{"UniformMass.totalMass=1", "'UniformMass' is ambiguous", "/instrument/UniformMass (UniformMass)"},
+                        Case{"phantom/nope.x=1", "no element 'phantom/nope'", "candidates"},
+                        Case{"phantom/fem.youngModulus", "ADDRESS=VALUE", ""}}) {
+    for (const char* cmd : {"run", "check"}) {
+      std::vector<std::string> args = {cmd, coarse, "--set", c.set};
+      if (std::string(cmd) == "run") args.insert(args.end(), {"--out", tmp / "out", "--steps", "2", "--summary", tmp / "s.json"});
+      RunResult r = runViscera(args);
+      EXPECT_EQ(r.rc, 2) << c.set << "\n" << r;
+      EXPECT_NE(r.err.find(c.expect1), std::string::npos) << r;
+      EXPECT_NE(r.err.find(c.expect2), std::string::npos) << r;
+      EXPECT_FALSE(fs::exists(tmp / "s.json"));
+    }
+  }
+}
+
+TEST(Cli, SaveStateAndContinueFromIt) {
+  TempDir tmp;
+  const std::string coarse = sourcePath("scenes/gel_phantom_coarse.xml");
+  RunResult whole = runViscera({"run", coarse, "--out", tmp / "w", "--steps", "80", "--state-out", tmp / "whole.csv", "--quiet"});
+  ASSERT_EQ(whole.rc, 0) << whole;
+  RunResult first = runViscera({"run", coarse, "--out", tmp / "f", "--steps", "50", "--save-state", tmp / "s50.state", "--quiet"});
+  ASSERT_EQ(first.rc, 0) << first;
+  RunResult rest = runViscera({"run", coarse, "--out", tmp / "r", "--steps", "30", "--from-state", tmp / "s50.state",
+                               "--state-out", tmp / "resumed.csv", "--quiet"});
+  ASSERT_EQ(rest.rc, 0) << rest;
+  EXPECT_EQ(slurp(tmp / "whole.csv"), slurp(tmp / "resumed.csv"));
+  // A state of another scene is refused.
+  RunResult other = runViscera({"run", kBeam, "--out", tmp / "o", "--steps", "1", "--from-state", tmp / "s50.state"});
+  EXPECT_EQ(other.rc, 2) << other;
+  EXPECT_NE(other.err.find("s50.state"), std::string::npos) << other;
+}

@@ -55,7 +55,7 @@ void dropContact(ElementDesc& el) {
 // The phantom without its instrument, loaded as before the instrument existed: a 0.5 N press on a
 // patch of the top face, CG from zero each step (25 iterations).
 void pressPhantom(SceneDesc& d) {
-  ElementDesc* phantom = d.root.findByName("phantom");
+  ElementDesc* phantom = &d.element("phantom");
   ElementDesc box, press;
   box.tag = "BoxROI";
   box.set("name", "press");
@@ -65,7 +65,7 @@ void pressPhantom(SceneDesc& d) {
   press.set("totalForce", "0 0 -0.5 N");
   phantom->children.push_back(box);
   phantom->children.push_back(press);
-  d.root.findByName("linear")->set("warmStart", "false");
+  d.element("linear").set("warmStart", "false");
 }
 
 void runScene(benchmark::State& state, const std::string& file, const std::function<void(SceneDesc&)>& edit) {
@@ -90,7 +90,7 @@ void runScene(benchmark::State& state, const std::string& file, const std::funct
 
 void BM_GelPhantom_CG25(benchmark::State& s) { runScene(s, "gel_phantom.xml", nullptr); }
 void BM_GelPhantom_CG25_MatrixFree(benchmark::State& s) {
-  runScene(s, "gel_phantom.xml", [](SceneDesc& d) { d.root.findByName("linear")->set("assembled", "false"); });
+  runScene(s, "gel_phantom.xml", [](SceneDesc& d) { d.element("linear").set("assembled", "false"); });
 }
 void BM_GelPhantom_Cholmod(benchmark::State& s) {
   runScene(s, "gel_phantom.xml", [](SceneDesc& d) { replaceTag(d.root, "CGLinearSolver", "SparseLDLSolver"); });

@@ -257,7 +257,7 @@ TEST(SceneGraph, EditingTheDescriptionChangesTheResult) {
   ASSERT_GT(base, 0.0);
 
   SceneDesc stiff = desc;
-  ElementDesc* fem = stiff.root.findByName("fem");
+  ElementDesc* fem = &stiff.element("fem");
   ASSERT_NE(fem, nullptr);
   EXPECT_EQ(fem->tag, "TetrahedronFEMForceField");
   const SourceLoc femLoc = fem->loc;
@@ -271,23 +271,23 @@ TEST(SceneGraph, EditingTheDescriptionChangesTheResult) {
   EXPECT_GT(std::abs(stiffer - base), 0.05 * base) << "4x stiffer: tip moved " << stiffer << " vs " << base;
 
   // The original description is untouched (copies are independent variants).
-  EXPECT_EQ(desc.root.findByName("fem")->find("youngModulus")->value, "1000");
+  EXPECT_EQ(desc.element("fem").find("youngModulus")->value, "1000");
   EXPECT_DOUBLE_EQ(tipSag(desc, tmp.str(), 100), base);
 
   // set() adds an attribute that was not written; it takes effect too.
   SceneDesc small = desc;
-  small.root.findByName("fem")->set("method", "small");
+  small.element("fem").set("method", "small");
   auto sm = Scene::build(small);
   sm->init();
   EXPECT_EQ(sm->all<TetrahedronFEMForceField>().at(0)->method(), fem::Method::Small);
-  small.root.findByName("fem")->set("method", "large");  // already there now: replaced, not duplicated
-  EXPECT_EQ(std::count_if(small.root.findByName("fem")->attrs.begin(), small.root.findByName("fem")->attrs.end(),
+  small.element("fem").set("method", "large");  // already there now: replaced, not duplicated
+  EXPECT_EQ(std::count_if(small.element("fem").attrs.begin(), small.element("fem").attrs.end(),
                           [](const AttrDesc& a) { return a.name == "method"; }),
             1);
 
   // A bad edited value is reported at the element it was set on.
   SceneDesc bad = desc;
-  bad.root.findByName("fem")->set("poissonRatio", "0.5");
+  bad.element("fem").set("poissonRatio", "0.5");
   try {
     Scene::build(bad);
     ADD_FAILURE() << "poissonRatio 0.5 accepted";

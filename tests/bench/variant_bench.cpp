@@ -1,0 +1,73 @@
+// Scene variants as a batch study makes them: building and initialising a variant of the coarse
+// phantom from an in-memory description, with its input files cached (as every variant after the
+// first finds them) and cold (cache cleared each time); and the throughput of variant runs on one
+// and on two threads (each run one worker: the batch parallelism is across runs).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "engine/Run.h"
+#include "engine/Simulation.h"
+#include "engine/core/Scene.h"
+#include "io/scene/InputCache.h"
+#include "io/scene/SceneReader.h"
+
+using namespace viscera;
+
+namespace {
+
+SceneDesc coarsePhantom() {
+  SceneDesc d = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom_coarse.xml");
+  auto& c = d.element("phantom").children;
+  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return e.tag == "VTKExporter"; }), c.end());
+  return d;
+}
+
+// Build + init of a variant (a new Young's modulus each time).
+void variantBuild(benchmark::State& state, bool cached) {
+  SceneDesc desc = coarsePhantom();
+  int k = 0;
+  for (auto _ : state) {
+    if (!cached) io::clearInputCache();
+    desc.set("phantom/fem.youngModulus", std::to_string(4 + (k++ % 5)) + " kPa");
+    auto scene = Scene::build(desc);
+    Simulation sim(*scene);
+    benchmark::DoNotOptimize(sim.time());
+  }
+}
+void BM_CoarseVariantBuild_Cached(benchmark::State& s) { variantBuild(s, true); }
+void BM_CoarseVariantBuild_Cold(benchmark::State& s) { variantBuild(s, false); }
+
+// Variants of the coarse phantom, 300 steps each (2 s of palpation), run by `threads` threads at
+// once; items/s is variants per second.
+void BM_CoarseVariantRuns(benchmark::State& state) {
+  const int threads = static_cast<int>(state.range(0));
+  const SceneDesc base = coarsePhantom();
+  auto one = [&](int k) {
+    SceneDesc d = base;
+    d.set("phantom/fem.youngModulus", std::to_string(4 + k % 5) + " kPa");
+    auto scene = Scene::build(d);
+    RunOptions o;
+    o.steps = 300;
+    o.threads = 1;
+    o.recordWrench = false;
+    run(*scene, o);
+  };
+  long variants = 0;
+  for (auto _ : state) {
+    std::vector<std::thread> pool;
+    for (int t = 0; t < threads; ++t) pool.emplace_back(one, t);
+    for (auto& t : pool) t.join();
+    variants += threads;
+  }
+  state.SetItemsProcessed(variants);
+}
+
+}  // namespace
+
+BENCHMARK(BM_CoarseVariantBuild_Cached)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_CoarseVariantBuild_Cold)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
+BENCHMARK(BM_CoarseVariantRuns)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);

@@ -1,0 +1,26 @@
+// A shipped scene read for a test, without its exporters: tests that compare states or results
+// leave no files behind.
+#pragma once
+
+#include <algorithm>
+#include <functional>
+#include <string>
+
+#include "engine/core/SceneDesc.h"
+#include "io/scene/SceneReader.h"
+
+namespace viscera::test_support {
+
+// `rel` is relative to the source tree ("scenes/gel_phantom.xml").
+inline SceneDesc readSceneWithoutExports(const std::string& rel) {
+  SceneDesc d = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/" + rel);
+  std::function<void(ElementDesc&)> strip = [&](ElementDesc& e) {
+    auto& c = e.children;
+    c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& x) { return x.tag == "VTKExporter"; }), c.end());
+    for (auto& x : c) strip(x);
+  };
+  strip(d.root);
+  return d;
+}
+
+}  // namespace viscera::test_support
