@@ -8,6 +8,72 @@
 
 namespace viscera {
 
+namespace {
+
+// Debian's serial OpenBLAS (the BLAS CHOLMOD's supernodal path calls) is built without locking:
+// two threads in it at once corrupt each other's buffers, and simulations run in parallel threads
+// gave results that changed from run to run. Supernodal factorisations and solves therefore take
+// this lock; simplicial ones call no BLAS and run in parallel.
+std::mutex& blasMutex() {
+  static std::mutex m;
+  return m;
+}
+
+// Symbolic analyses (fill-reducing ordering and symbolic factor) shared by every solver that
+// factorises the same block pattern: scene variants that change only parameters analyse once per
+// process. Orderings run under the cache's lock (METIS keeps global state).
+class SymbolicCache {
+ public:
+  SymbolicCache() { cholmod_start(&common_); }
+  ~SymbolicCache() {
+    clear();
+    cholmod_finish(&common_);
+  }
+  void clear() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& e : entries_) cholmod_free_factor(&e.L, &common_);
+    entries_.clear();
+  }
+  // A symbolic factor of A (whose block pattern is rowStart/cols) owned by `common`'s caller.
+  cholmod_factor* analyse(cholmod_sparse* A, const std::vector<int>& rowStart, const std::vector<int>& cols,
+                          cholmod_common& common) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& e : entries_)
+      if (e.supernodal == common.supernodal && e.rowStart == rowStart && e.cols == cols) return cholmod_copy_factor(e.L, &common);
+    cholmod_factor* L = cholmod_analyze(A, &common);
+    if (!L) return nullptr;
+    // A bounded number of patterns: a batch study has a few.
+    if (entries_.size() >= 8) {
+      cholmod_free_factor(&entries_.front().L, &common_);
+      entries_.erase(entries_.begin());
+    }
+    entries_.push_back({rowStart, cols, common.supernodal, cholmod_copy_factor(L, &common_)});
+    return L;
+  }
+
+ private:
+  struct Entry {
+    std::vector<int> rowStart, cols;
+    int supernodal;
+    cholmod_factor* L;
+  };
+  std::mutex mutex_;
+  cholmod_common common_;
+  std::vector<Entry> entries_;
+};
+
+SymbolicCache& symbolicCache() {
+  static SymbolicCache c;
+  return c;
+}
+
+}  // namespace
+
+// Below this many unknowns the simplicial factorisation is used: no BLAS and no OpenMP regions,
+// whose thread wake-ups cost more than the arithmetic on small systems (measured with
+// BM_CoarseVariantBuild: the 975-unknown compliance of the coarse phantom).
+constexpr int kSimplicialBelow = 3000;
+
 struct CholmodSolver::Impl {
   cholmod_common common;
   cholmod_sparse* A = nullptr;     // lower triangle, scalar CSC, pattern fixed once analysed
@@ -33,6 +99,7 @@ struct CholmodSolver::Impl {
     if (L) cholmod_free_factor(&L, &common);
     if (A) cholmod_free_sparse(&A, &common);
     const int n = M.rows();
+    common.supernodal = n < kSimplicialBelow ? CHOLMOD_SIMPLICIAL : CHOLMOD_AUTO;
     // Count lower-triangle scalar entries per scalar column.
     std::vector<int> colCount(n, 0);
     const auto& rs = M.rowStart();
@@ -75,27 +142,15 @@ struct CholmodSolver::Impl {
   }
 };
 
-namespace {
-// Debian's serial OpenBLAS (the BLAS CHOLMOD's supernodal path calls) is built without locking:
-// two threads in it at once corrupt each other's buffers, and simulations run in parallel threads
-// gave results that changed from run to run. Supernodal factorisations and solves, and the
-// orderings (METIS keeps global state), therefore take this lock; simplicial ones call no BLAS
-// and run in parallel.
-std::mutex& blasMutex() {
-  static std::mutex m;
-  return m;
-}
-}  // namespace
-
 CholmodSolver::CholmodSolver() : impl_(new Impl()) {}
+void CholmodSolver::clearSharedAnalyses() { symbolicCache().clear(); }
 CholmodSolver::~CholmodSolver() { delete impl_; }
 
 bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) {
   Impl& d = *impl_;
   if (!d.A || d.rowStart != M.rowStart() || d.cols != M.cols()) {
     d.buildPattern(M);
-    std::lock_guard<std::mutex> lock(blasMutex());
-    d.L = cholmod_analyze(d.A, &d.common);
+    d.L = symbolicCache().analyse(d.A, d.rowStart, d.cols, d.common);
     ++analyses_;
     if (!d.L) {
       message = "CHOLMOD analysis failed";

@@ -61,6 +61,9 @@ class CholmodSolver {
   bool factorize(const BlockSparseMatrix& A, std::string& message);
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x);
   int analyses() const { return analyses_; }
+  // Symbolic analyses are shared by every solver of the process that factorises the same
+  // pattern; this forgets them (benchmarks of a cold start).
+  static void clearSharedAnalyses();
 
  private:
   struct Impl;
