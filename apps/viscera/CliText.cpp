@@ -1,5 +1,7 @@
 #include "apps/viscera/CliText.h"
 
+#include <nlohmann/json.hpp>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -47,14 +49,8 @@ std::vector<double> finiteNumbers(const std::string& text, const std::string& op
 }
 
 std::string jsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\', o += c;
-    else if (c == '\n') o += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o + "\"";
+  // Bytes that are not UTF-8 (a file name from another system) are replaced, not refused.
+  return nlohmann::json(s).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 }  // namespace viscera::cli

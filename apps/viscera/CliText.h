@@ -17,8 +17,7 @@ std::vector<double> finiteNumbers(const std::string& text, const std::string& op
 // be written in exists; commands check this before doing any work, so a typo costs nothing.
 void requireParentFolder(const std::string& path, const std::string& option);
 
-// `s` as a quoted JSON string: quotes and backslashes escaped, newlines as \n, other control
-// characters as blanks.
+// `s` as a quoted JSON string (nlohmann::json's escaping; invalid UTF-8 replaced).
 std::string jsonString(const std::string& s);
 
 }  // namespace viscera::cli
