@@ -5,7 +5,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 
 namespace viscera {

@@ -13,7 +13,7 @@
 
 #include "engine/Roles.h"
 #include "engine/State.h"
-#include "engine/core/SceneDesc.h"
+#include "core/SceneDesc.h"
 
 namespace viscera {
 

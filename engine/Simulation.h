@@ -7,7 +7,7 @@
 
 #include "engine/Roles.h"
 #include "engine/State.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 
 namespace viscera {
 

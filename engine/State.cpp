@@ -1,10 +1,10 @@
 #include "engine/State.h"
+#include "core/Files.h"
 
 #include <fstream>
 #include <iterator>
 
-#include "engine/core/Error.h"
-#include "io/mesh/Mesh.h"
+#include "core/Error.h"
 
 namespace viscera {
 
@@ -39,7 +39,7 @@ void State::save(const std::string& file) const {
     w.raw(b.component.data(), b.component.size());
     w.put(b.bytes);
   }
-  io::writeFileAtomic(file, std::string(out.begin(), out.end()));
+  writeFileAtomic(file, std::string(out.begin(), out.end()));
 }
 
 State State::load(const std::string& file) {

@@ -1,6 +1,7 @@
 // Trajectory sampling (lerp + shortest-arc slerp), its piecewise-constant velocity, and the
 // `t,x,y,z,qx,qy,qz,qw` CSV format with strict, line-numbered error messages.
 #include "motion/Trajectory.h"
+#include "core/Files.h"
 
 #include <algorithm>
 #include <cctype>
@@ -15,7 +16,7 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::motion {
@@ -233,6 +234,6 @@ std::string formatTrajectoryCsv(const Trajectory& tr) {
   return out;
 }
 
-void writeTrajectoryCsv(const std::string& path, const Trajectory& tr) { io::writeFileAtomic(path, formatTrajectoryCsv(tr)); }
+void writeTrajectoryCsv(const std::string& path, const Trajectory& tr) { writeFileAtomic(path, formatTrajectoryCsv(tr)); }
 
 }  // namespace viscera::motion

@@ -1,6 +1,7 @@
 // `viscera camera`: runs a scene and writes the frames of its DepthCamera(s). A scene without one
 // gets a camera from the command-line options, added to its description as a DepthCamera element
 // so that the options are validated by the component's own declarations.
+#include "builtin/Builtins.h"
 #include "apps/viscera/CameraCommand.h"
 
 #include <CLI/CLI.hpp>
@@ -18,9 +19,9 @@
 
 #include "engine/Run.h"
 #include "engine/Simulation.h"
-#include "engine/core/Error.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Error.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "io/scene/SceneReader.h"
 
 namespace viscera {
@@ -170,7 +171,7 @@ int runCamera(const CameraOptions& o) {
     desc.root.children.push_back(cameraElement(o));
   }
 
-  auto scene = Scene::build(desc);
+  auto scene = buildScene(desc);
   scene->setOutputDirectory(o.out);
   Simulation sim(*scene);  // initialises: every input error surfaces before anything is written
   if (!o.quiet) {

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera::cli {
 

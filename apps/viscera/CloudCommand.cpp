@@ -1,6 +1,7 @@
 // `viscera cloud prep`: preprocess a capture (one cloud file, or a sequence folder / index CSV)
 // with prepareCloud and write the result; `viscera cloud info`: describe a cloud file or sequence.
 #include "apps/viscera/CloudCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -16,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/pointcloud/CloudPrep.h"
@@ -185,7 +186,7 @@ int runPrep(PrepCommandOptions o) {
     }
     if (!o.quiet) std::cerr << "wrote " << frames.size() << " frames and index.csv to " << o.out << "\n";
   }
-  if (!o.report.empty()) io::writeFileAtomic(o.report, reportJson(o, results));
+  if (!o.report.empty()) writeFileAtomic(o.report, reportJson(o, results));
   return kExitOk;
 }
 

@@ -2,6 +2,7 @@
 // the simulated tissue surface, per frame, with obs::CloudDistance. The surface is one mesh, or the
 // frames of a simulation's VTK series matched to the clouds by time.
 #include "apps/viscera/DistanceCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -25,8 +26,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
-#include "engine/observation/CloudDistance.h"
+#include "core/Error.h"
+#include "observation/CloudDistance.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
@@ -454,8 +455,8 @@ int runDistance(const DistanceCommandOptions& o) {
   }
 
   const bool triangles = options.method == obs::DistanceMethod::Triangles;
-  if (!o.out.empty()) io::writeFileAtomic(o.out, tableCsv(rows, triangles, surface.series()));
-  if (!o.summary.empty()) io::writeFileAtomic(o.summary, summaryJson(o, surface, rows));
+  if (!o.out.empty()) writeFileAtomic(o.out, tableCsv(rows, triangles, surface.series()));
+  if (!o.summary.empty()) writeFileAtomic(o.summary, summaryJson(o, surface, rows));
   if (!o.quiet) {
     long count = 0;
     double sum = 0;

@@ -2,6 +2,7 @@
 // summary and a CSV of its packets; `viscera espm synth`: writes the capture an arm following a
 // joint log would have sent.
 #include "apps/viscera/EspmCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -16,7 +17,7 @@
 #include <sstream>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
 #include "robot/encoder/Registers.h"
@@ -179,8 +180,8 @@ int runDecode(const DecodeOptions& o) {
   // Joint values need every PSM encoder without overflow: an error naming the packet otherwise.
   std::unique_ptr<robot::JointTrajectory> joints;
   if (!o.csv.empty() && !o.noJoints) joints = std::make_unique<robot::JointTrajectory>(jointsFromCapture(capture, scale));
-  if (!o.csv.empty()) io::writeFileAtomic(o.csv, packetCsv(capture, joints.get(), scale));
-  if (!o.json.empty()) io::writeFileAtomic(o.json, summaryJson(capture, counts));
+  if (!o.csv.empty()) writeFileAtomic(o.csv, packetCsv(capture, joints.get(), scale));
+  if (!o.json.empty()) writeFileAtomic(o.json, summaryJson(capture, counts));
 
   const DecoderStats& s = capture.stats;
   std::cout << o.capture << ": " << capture.samples.size() << " packets (" << framingName(capture.framing)

@@ -14,8 +14,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "engine/core/Error.h"
-#include "engine/core/Units.h"
+#include "core/Error.h"
+#include "core/Units.h"
 #include "io/scene/Transform.h"
 #include "motion/Trajectory.h"
 #include "robot/kinematics/JointTrajectory.h"

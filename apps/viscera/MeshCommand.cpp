@@ -2,6 +2,7 @@
 // writes a .msh or .vtu volume mesh with a quality report; `viscera mesh --check` only checks the
 // surface.
 #include "apps/viscera/MeshCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -13,7 +14,7 @@
 #include <sstream>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/meshing/Tetrahedralize.h"
 #include "io/surface/SurfaceMesh.h"
@@ -139,7 +140,7 @@ int meshSurface(const MeshCommandOptions& o) {
   else io::writeVtu(o.out, mesh.points, mesh.tets, {}, {});
   if (!o.report.empty()) {
     try {
-      io::writeFileAtomic(o.report, json.str());
+      writeFileAtomic(o.report, json.str());
     } catch (const Error&) {
       // Both outputs or neither.
       std::error_code ec;

@@ -2,6 +2,7 @@
 // `viscera register points`: robot -> scene from corresponding points. Both write a transform file
 // that scenes reference (TrajectoryDriver.transform) and, on request, a JSON report.
 #include "apps/viscera/RegisterCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -19,9 +20,9 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
-#include "engine/observation/Registration.h"
-#include "engine/observation/SurfaceIndex.h"
+#include "core/Error.h"
+#include "observation/Registration.h"
+#include "observation/SurfaceIndex.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
@@ -211,7 +212,7 @@ int runIcp(const IcpCommandOptions& o) {
                         std::to_string(r.iterations) + " iterations, " + (r.converged ? "converged" : "not converged") +
                         ", condition " + number(r.conditionRatio, 3) + (r.degenerate ? " (under-constrained)" : "");
   writeTransform(o.out, r.transform, comment);
-  if (!o.report.empty()) io::writeFileAtomic(o.report, icpReport(o, initial, r, pc.size()));
+  if (!o.report.empty()) writeFileAtomic(o.report, icpReport(o, initial, r, pc.size()));
   if (!o.aligned.empty()) {
     io::DataArray residual{"residual", 1, std::vector<double>(r.distances.data(), r.distances.data() + r.distances.size())};
     io::DataArray kept{"kept", 1, std::vector<double>(r.kept.begin(), r.kept.end())};
@@ -272,7 +273,7 @@ int runPoints(const PointsCommandOptions& o) {
                         number(r.max) + "; per point:";
   for (Eigen::Index i = 0; i < S.cols(); ++i) comment += " " + labels[static_cast<size_t>(i)] + " " + number(r.norms(i));
   writeTransform(o.out, r.transform, comment);
-  if (!o.report.empty()) io::writeFileAtomic(o.report, pointsReport(o, r, labels, S, D));
+  if (!o.report.empty()) writeFileAtomic(o.report, pointsReport(o, r, labels, S, D));
   std::cerr << "wrote " << o.out << (o.report.empty() ? "" : ", " + o.report) << "\n";
   return kExitOk;
 }

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "motion/Palpation.h"
 #include "motion/Trajectory.h"

@@ -3,6 +3,7 @@
 // host reads both FPGAs at a fixed rate and estimates the 16-line encoder's velocity by each
 // method. Writes velocity.csv, summary.json and (through gnuplot) velocity.png like Fig. II-8.
 #include "apps/viscera/VelocityCommand.h"
+#include "core/Files.h"
 #include "apps/viscera/CliText.h"
 
 #include <CLI/CLI.hpp>
@@ -27,7 +28,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
 #include "robot/encoder/Motion.h"
@@ -287,11 +288,11 @@ int compare(CompareOptions o) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) throw Error(SourceLoc{o.out}, "cannot create the output folder: " + ec.message());
-  io::writeFileAtomic((dir / "velocity.csv").string(), formatCsv(result));
-  io::writeFileAtomic((dir / "summary.json").string(), formatSummary(o, motion, result, rows));
+  writeFileAtomic((dir / "velocity.csv").string(), formatCsv(result));
+  writeFileAtomic((dir / "summary.json").string(), formatSummary(o, motion, result, rows));
   std::cout << formatTable(o, result, rows);
   if (!o.noPlot) {
-    io::writeFileAtomic((dir / "velocity.gp").string(), formatGnuplot(o, result, rows));
+    writeFileAtomic((dir / "velocity.gp").string(), formatGnuplot(o, result, rows));
     plot(dir);
   }
   std::cerr << "wrote " << (dir / "velocity.csv").string() << ", summary.json" << (o.noPlot ? "" : ", velocity.gp and velocity.png")

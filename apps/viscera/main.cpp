@@ -12,6 +12,8 @@
 #include <memory>
 #include <sstream>
 
+#include "core/Files.h"
+#include "builtin/Builtins.h"
 #include "apps/viscera/CameraCommand.h"
 #include "apps/viscera/CloudCommand.h"
 #include "apps/viscera/DistanceCommand.h"
@@ -25,8 +27,8 @@
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
 #include "engine/rigid/RigidObject.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/SceneReader.h"
@@ -49,7 +51,7 @@ struct RunCommand {
 std::unique_ptr<Scene> loadScene(const std::string& path, const std::vector<std::string>& sets) {
   SceneDesc desc = io::readScene(path);
   for (const auto& s : sets) desc.applySetting(s);
-  return Scene::build(desc);
+  return buildScene(desc);
 }
 
 // Notes from reading and initialising the scene (ignored elements, idle solvers, ...).
@@ -82,15 +84,15 @@ int cmdRun(const RunCommand& o) {
   if (!o.quiet) ro.observers.push_back(&progress);
   const RunResult r = run(sim, ro);
 
-  if (!o.summary.empty()) io::writeFileAtomic(o.summary, summaryJson(r, o.scene));
-  if (!o.wrench.empty()) io::writeFileAtomic(o.wrench, wrenchCsv(r));
+  if (!o.summary.empty()) writeFileAtomic(o.summary, summaryJson(r, o.scene));
+  if (!o.wrench.empty()) writeFileAtomic(o.wrench, wrenchCsv(r));
   if (!o.stateOut.empty()) {
     std::ostringstream c;
     c << std::setprecision(17) << "object,node,x,y,z\n";
     for (const auto* s : scene->all<MechanicalObject>())
       for (int i = 0; i < s->size(); ++i)
         c << s->name() << "," << i << "," << s->x(0, i) << "," << s->x(1, i) << "," << s->x(2, i) << "\n";
-    io::writeFileAtomic(o.stateOut, c.str());
+    writeFileAtomic(o.stateOut, c.str());
   }
   if (!o.saveState.empty()) sim.captureState().save(o.saveState);
   if (r.failure) {

@@ -8,7 +8,7 @@
 #include <cstdlib>
 
 #include "engine/collision/Geometry.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"

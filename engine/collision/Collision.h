@@ -19,7 +19,7 @@
 
 #include "engine/Roles.h"
 #include "engine/State.h"
-#include "engine/core/Component.h"
+#include "core/Component.h"
 
 namespace viscera {
 

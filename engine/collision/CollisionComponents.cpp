@@ -1,6 +1,6 @@
 // Declarations of the collision components (models, pipeline, intersection, response).
 #include "engine/collision/Collision.h"
-#include "engine/core/Registry.h"
+#include "core/Registry.h"
 
 namespace viscera {
 

@@ -13,8 +13,8 @@
 
 #include "engine/MechanicalSystem.h"
 #include "engine/collision/Collision.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/LinearSolver.h"

@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <sstream>
 
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mapping/VisualModel.h"
 #include "engine/mechanics/MechanicalObject.h"

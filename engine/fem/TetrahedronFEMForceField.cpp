@@ -4,8 +4,8 @@
 #include <stdexcept>
 
 #include "engine/Coloring.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
 #include "solvers/linear/BlockSparseMatrix.h"

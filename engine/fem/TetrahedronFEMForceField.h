@@ -6,7 +6,7 @@
 
 #include "engine/Roles.h"
 #include "engine/State.h"
-#include "engine/core/Component.h"
+#include "core/Component.h"
 #include "engine/fem/TetKernel.h"
 
 namespace viscera {

@@ -3,8 +3,8 @@
 #include <cstdio>
 #include <string>
 
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mapping/Embedding.h"
 #include "engine/mapping/VisualModel.h"
 #include "engine/mechanics/MechanicalObject.h"

@@ -4,8 +4,8 @@
 #include <filesystem>
 #include <string>
 
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/InputCache.h"
 #include "io/surface/SurfaceMesh.h"

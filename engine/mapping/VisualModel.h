@@ -5,7 +5,7 @@
 
 #include <Eigen/Core>
 
-#include "engine/core/Component.h"
+#include "core/Component.h"
 #include "engine/mapping/Embedding.h"
 
 namespace viscera {

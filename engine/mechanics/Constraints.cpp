@@ -1,8 +1,8 @@
 // FixedConstraint (projective), BoxROI (index selection) and ConstantForceField.
 #include <algorithm>
 
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 
 namespace viscera {

@@ -5,8 +5,8 @@
 #include <cmath>
 
 #include "engine/Roles.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/InputCache.h"

@@ -2,9 +2,9 @@
 
 #include <cmath>
 
-#include "engine/core/Component.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Component.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "io/scene/InputCache.h"
 #include "io/scene/Transform.h"
 

@@ -7,7 +7,7 @@
 #include <Eigen/Geometry>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera {
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 
 namespace viscera {
 

@@ -8,7 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "engine/State.h"
-#include "engine/core/Component.h"
+#include "core/Component.h"
 
 namespace viscera {
 

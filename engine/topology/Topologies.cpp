@@ -3,8 +3,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
 #include "io/mesh/Mesh.h"

@@ -4,7 +4,7 @@
 #include <string>
 #include <unordered_map>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/mesh/MeshDetail.h"
 

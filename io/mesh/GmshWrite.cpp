@@ -2,7 +2,8 @@
 #include <cstdio>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Files.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io {

@@ -64,9 +64,6 @@ void writeVtp(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
 // Writes a .pvd collection: (time, file relative to the .pvd) pairs.
 void writePvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries);
 
-// Writes `content` to `path` through a temporary file in the same folder and a rename, so that
-// readers never see a half-written file. Throws viscera::Error on failure.
-void writeFileAtomic(const std::string& path, const std::string& content);
 
 // Writes a Gmsh MSH 2.2 ASCII file (atomically): the mesh's triangles (element type 2), when it
 // has any, then its tetrahedra (type 4), each with physical and elementary tag 1; nodes numbered

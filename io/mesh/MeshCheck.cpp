@@ -8,7 +8,7 @@
 
 #include <Eigen/Dense>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io {

@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <memory>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera::io {
 namespace detail {

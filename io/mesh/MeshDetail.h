@@ -7,7 +7,7 @@
 #include <string_view>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io::detail {
@@ -18,7 +18,7 @@ namespace viscera::io::detail {
 // The whole file as bytes; throws an Error naming the path when it cannot be read.
 std::string readWholeFile(const std::string& path);
 
-// A token quoted for a message, shortened when it is long or binary (engine/core/Error.h).
+// A token quoted for a message, shortened when it is long or binary (core/Error.h).
 using viscera::quoted;
 
 std::string_view trim(std::string_view s);

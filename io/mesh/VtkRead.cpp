@@ -4,7 +4,7 @@
 #include <climits>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/mesh/MeshDetail.h"
 

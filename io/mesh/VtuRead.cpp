@@ -13,7 +13,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/mesh/MeshDetail.h"
 

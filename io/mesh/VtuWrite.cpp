@@ -13,7 +13,8 @@
 #include <cstring>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Files.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io {
@@ -301,39 +302,6 @@ void writePvd(const std::string& path, const std::vector<std::pair<double, std::
       "  </Collection>\n"
       "</VTKFile>\n";
   writeFileAtomic(path, out);
-}
-
-void writeFileAtomic(const std::string& path, const std::string& content) {
-  // Same folder as the target, so the rename stays on one file system and is atomic.
-  const std::string temp = path + ".tmp." + std::to_string(::getpid());
-  auto failWith = [&](int err, const char* step, bool removeTemp) {
-    if (removeTemp) ::unlink(temp.c_str());
-    fail(path, std::string("cannot write file: ") + step + " " + temp + " failed: " + std::strerror(err));
-  };
-  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd < 0) {
-    const int err = errno;
-    failWith(err, "creating", false);
-  }
-  size_t done = 0;
-  while (done < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = n < 0 ? errno : EIO;
-      ::close(fd);
-      failWith(err, "writing", true);
-    }
-    done += static_cast<size_t>(n);
-  }
-  if (::close(fd) != 0) {  // deferred write errors (e.g. a full disk on NFS) show up here
-    const int err = errno;
-    failWith(err, "closing", true);
-  }
-  if (std::rename(temp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    failWith(err, "renaming", true);
-  }
 }
 
 }  // namespace viscera::io

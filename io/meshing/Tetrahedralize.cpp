@@ -27,7 +27,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 extern char** environ;
 

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/pointcloud/CloudPrep.h"
 
 namespace viscera::cloud {

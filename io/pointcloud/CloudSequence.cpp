@@ -13,7 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Files.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 
@@ -181,7 +182,7 @@ std::string CloudSequenceWriter::add(const PointCloud& cloud, double time) {
 
   std::string index = "time,file\n";
   for (const auto& f : frames_) index += formatTime(f.time) + "," + fs::path(f.path).filename().string() + "\n";
-  io::writeFileAtomic((fs::path(folder_) / "index.csv").string(), index);
+  writeFileAtomic((fs::path(folder_) / "index.csv").string(), index);
   return path;
 }
 

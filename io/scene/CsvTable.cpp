@@ -11,7 +11,7 @@
 #include <memory>
 #include <string_view>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera::io {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "engine/core/SceneDesc.h"
+#include "core/SceneDesc.h"
 
 namespace viscera::io {
 

@@ -1,4 +1,5 @@
 #include "io/scene/Transform.h"
+#include "core/Files.h"
 
 #include <cmath>
 #include <cstdio>
@@ -6,7 +7,7 @@
 #include <sstream>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera {
@@ -81,7 +82,7 @@ std::string formatTransform(const RigidTransform& T, const std::string& comment)
 }
 
 void writeTransform(const std::string& path, const RigidTransform& T, const std::string& comment) {
-  io::writeFileAtomic(path, formatTransform(T, comment));
+  writeFileAtomic(path, formatTransform(T, comment));
 }
 
 }  // namespace viscera

@@ -1,6 +1,7 @@
 // Surface files through OpenMesh's readers and writers, and the topological checks of a triangle
 // surface (boundary, manifoldness, orientation), done on the indexed triangles.
 #include "io/surface/SurfaceMesh.h"
+#include "core/Files.h"
 
 #include <Eigen/Geometry>
 #include <OpenMesh/Core/IO/IOManager.hh>
@@ -24,7 +25,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::io {

@@ -6,7 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/scene/CsvTable.h"
 
 namespace viscera::robot::encoder {

@@ -1,4 +1,5 @@
 #include "robot/espm/Capture.h"
+#include "core/Files.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -9,7 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
 #include "robot/encoder/EncoderFpga.h"
@@ -128,7 +129,7 @@ void writeCapture(const std::string& path, std::span<const CaptureSample> sample
   } catch (const Error& e) {
     throw Error(SourceLoc{path}, e.what());
   }
-  io::writeFileAtomic(path, std::string(bytes.begin(), bytes.end()));
+  writeFileAtomic(path, std::string(bytes.begin(), bytes.end()));
 }
 
 void JointScale::validate() const {

@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "robot/espm/Framing.h"
 
 namespace viscera::robot::espm {

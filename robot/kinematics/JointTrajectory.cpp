@@ -1,10 +1,11 @@
 #include "robot/kinematics/JointTrajectory.h"
+#include "core/Files.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
 
@@ -99,7 +100,7 @@ std::string formatJointCsv(const JointTrajectory& trajectory) {
 }
 
 void writeJointCsv(const std::string& path, const JointTrajectory& trajectory) {
-  io::writeFileAtomic(path, formatJointCsv(trajectory));
+  writeFileAtomic(path, formatJointCsv(trajectory));
 }
 
 }  // namespace viscera::robot

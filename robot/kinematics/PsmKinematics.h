@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera::robot {
 

@@ -1,6 +1,6 @@
 // Scene components for the linear solvers: CGLinearSolver and SparseLDLSolver.
-#include "engine/core/Component.h"
-#include "engine/core/Registry.h"
+#include "core/Component.h"
+#include "core/Registry.h"
 #include "solvers/linear/LinearSolver.h"
 
 namespace viscera {

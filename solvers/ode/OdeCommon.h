@@ -1,6 +1,6 @@
 #pragma once
 
-#include "engine/core/Component.h"
+#include "core/Component.h"
 #include "solvers/linear/LinearSolver.h"
 
 namespace viscera {

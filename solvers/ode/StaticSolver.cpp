@@ -6,8 +6,8 @@
 #include <memory>
 
 #include "engine/MechanicalSystem.h"
-#include "engine/core/Registry.h"
-#include "engine/core/Scene.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "solvers/ode/OdeCommon.h"

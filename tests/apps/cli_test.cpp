@@ -9,8 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "cli_helpers.h"
-#include "engine/core/Registry.h"
+#include "core/Registry.h"
 
 using namespace viscera_test;
 

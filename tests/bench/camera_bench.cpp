@@ -1,4 +1,4 @@
-// One frame of the virtual depth camera (engine/observation/DepthCamera.h) on the gel phantom: the
+// One frame of the virtual depth camera (observation/DepthCamera.h) on the gel phantom: the
 // 25 x 9 x 9 grid's boundary (1792 triangles) and the 5 mm instrument sphere above its top face,
 // seen from 400 mm, 40 degrees from the vertical, by a 640 x 480 camera with the RealSense-like
 // noise (2 mm at 400 mm, 1 % dropout, 80 degree grazing limit, 1/8 mm depth unit). Rendering and
@@ -7,8 +7,8 @@
 
 #include <cmath>
 
-#include "engine/observation/DepthCamera.h"
-#include "engine/observation/SurfaceIndex.h"
+#include "observation/DepthCamera.h"
+#include "observation/SurfaceIndex.h"
 #include "engine/topology/GridSplit.h"
 #include "io/pointcloud/CloudIo.h"
 #include "tests/support/TempDir.h"

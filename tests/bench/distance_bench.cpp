@@ -13,7 +13,7 @@
 #include <cmath>
 #include <random>
 
-#include "engine/observation/CloudDistance.h"
+#include "observation/CloudDistance.h"
 #include "engine/topology/GridSplit.h"
 
 using namespace viscera;

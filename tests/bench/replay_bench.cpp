@@ -11,9 +11,10 @@
 #include <sstream>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
 
@@ -36,7 +37,7 @@ std::unique_ptr<Scene> loadPhantom(double dt = 0) {
     text << std::setprecision(17) << dt << " s";
     desc.root.set("dt", text.str());
   }
-  return Scene::build(desc);
+  return buildScene(desc);
 }
 
 MechanicalObject& phantomState(Scene& s) {

@@ -8,8 +8,9 @@
 #include <functional>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "io/scene/SceneReader.h"
 
 using namespace viscera;
@@ -75,7 +76,7 @@ void runScene(benchmark::State& state, const std::string& file, const std::funct
   dropContact(desc.root);
   if (file.rfind("gel_phantom", 0) == 0) pressPhantom(desc);
   if (edit) edit(desc);
-  auto scene = Scene::build(desc);
+  auto scene = buildScene(desc);
   Simulation sim(*scene);
   for (int i = 0; i < 5; ++i) sim.step();  // warm up
   for (auto _ : state) {

@@ -9,9 +9,10 @@
 #include <thread>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "io/scene/InputCache.h"
 #include "io/scene/SceneReader.h"
 #include "solvers/linear/LinearSolver.h"
@@ -37,7 +38,7 @@ void variantBuild(benchmark::State& state, bool cached) {
       CholmodSolver::clearSharedAnalyses();
     }
     desc.set("phantom/fem.youngModulus", std::to_string(4 + (k++ % 5)) + " kPa");
-    auto scene = Scene::build(desc);
+    auto scene = buildScene(desc);
     Simulation sim(*scene);
     benchmark::DoNotOptimize(sim.time());
   }
@@ -53,7 +54,7 @@ void BM_CoarseVariantRuns(benchmark::State& state) {
   auto one = [&](int k) {
     SceneDesc d = base;
     d.set("phantom/fem.youngModulus", std::to_string(4 + k % 5) + " kPa");
-    auto scene = Scene::build(d);
+    auto scene = buildScene(d);
     RunOptions o;
     o.steps = 300;
     o.threads = 1;

@@ -8,8 +8,8 @@
 #include <limits>
 #include <optional>
 
-#include "engine/observation/DepthCamera.h"
-#include "engine/observation/SurfaceIndex.h"
+#include "observation/DepthCamera.h"
+#include "observation/SurfaceIndex.h"
 #include "engine/topology/GridSplit.h"
 
 namespace camera_test {

@@ -9,9 +9,10 @@
 #include <stdexcept>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Error.h"
-#include "engine/core/Scene.h"
+#include "core/Error.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/SceneReader.h"
@@ -55,7 +56,7 @@ struct SceneRun {
   std::unique_ptr<Simulation> sim;
   explicit SceneRun(const std::string& text) {
     std::ofstream(dir / "scene.xml") << text;
-    scene = Scene::build(io::readScene(dir / "scene.xml"));
+    scene = buildScene(io::readScene(dir / "scene.xml"));
     scene->setOutputDirectory(dir / "out");
     sim = std::make_unique<Simulation>(*scene);
   }
@@ -160,7 +161,7 @@ TEST(DepthCameraComponent, InstrumentHidesTissueAndTissueOnlyDropsIt) {
 std::string sceneError(const std::string& text, TempDir& dir) {
   std::ofstream(dir / "scene.xml") << text;
   try {
-    auto scene = Scene::build(io::readScene(dir / "scene.xml"));
+    auto scene = buildScene(io::readScene(dir / "scene.xml"));
     scene->setOutputDirectory(dir / "out");
     scene->init();
   } catch (const Error& e) {

@@ -7,9 +7,10 @@
 #include <memory>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "io/scene/SceneReader.h"
 
 namespace viscera::contact_test {
@@ -22,7 +23,7 @@ struct SceneRun {
 // `file` names the scene in messages and sets the folder relative paths (meshes) resolve against.
 inline SceneRun buildRun(const std::string& xml, const std::string& file = "inline.xml") {
   SceneRun r;
-  r.scene = Scene::build(io::parseSceneText(xml, file));
+  r.scene = buildScene(io::parseSceneText(xml, file));
   r.sim = std::make_unique<Simulation>(*r.scene);
   return r;
 }

@@ -42,9 +42,10 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -138,7 +139,7 @@ RunResult simulate(double mu, double dx, double moveEnd, double duration) {
   RunResult out;
   const auto t0 = std::chrono::steady_clock::now();
   const std::string xml = sceneXml(mu, keyTimes(moveEnd, duration), movements(dx, moveEnd, duration));
-  auto scene = Scene::build(io::parseSceneText(xml, "friction.xml"));
+  auto scene = buildScene(io::parseSceneText(xml, "friction.xml"));
   Simulation sim(*scene);
   RigidObject* tool = scene->all<RigidObject>().at(0);
   CollisionPipeline* pipe = sim.pipeline();

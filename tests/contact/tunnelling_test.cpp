@@ -26,10 +26,11 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
 #include "engine/collision/Geometry.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -125,7 +126,7 @@ void runPalpation(bool constraint) {
   motion::writeTrajectoryCsv(csv, pr.trajectory);
 
   const auto t0 = std::chrono::steady_clock::now();
-  auto scene = Scene::build(io::parseSceneText(sceneXml(constraint, csv), tmp / "palpation.xml"));
+  auto scene = buildScene(io::parseSceneText(sceneXml(constraint, csv), tmp / "palpation.xml"));
   Simulation sim(*scene);
   CollisionPipeline* pipe = sim.pipeline();
   ASSERT_NE(pipe, nullptr);

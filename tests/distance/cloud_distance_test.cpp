@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/observation/CloudDistance.h"
+#include "observation/CloudDistance.h"
 #include "tests/apps/cli_helpers.h"
 
 namespace {

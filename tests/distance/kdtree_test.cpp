@@ -4,7 +4,7 @@
 #include <limits>
 #include <random>
 
-#include "engine/observation/KdTree.h"
+#include "observation/KdTree.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <map>
 #include <vector>
 
-#include "engine/observation/SurfaceSampling.h"
+#include "observation/SurfaceSampling.h"
 #include "engine/topology/GridSplit.h"
 
 namespace {

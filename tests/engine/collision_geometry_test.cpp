@@ -17,10 +17,11 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
 #include "engine/collision/Geometry.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -320,7 +321,7 @@ struct Block {
   Eigen::Vector3d top{0, 0, 0};  // upper corner of the block
 
   Block(std::array<int, 3> n, int spheres, double R_, double alarm_, double contact_) : R(R_), alarm(alarm_), contact(contact_) {
-    scene = Scene::build(io::parseSceneText(blockScene(n, spheres, R, alarm, contact), "collision_block.xml"));
+    scene = buildScene(io::parseSceneText(blockScene(n, spheres, R, alarm, contact), "collision_block.xml"));
     sim = std::make_unique<Simulation>(*scene);
     auto surfaces = scene->all<SurfaceCollisionModel>();
     EXPECT_EQ(surfaces.size(), 1u);

@@ -4,6 +4,7 @@
 
 #include <random>
 
+#include "builtin/Builtins.h"
 #include "engine/MechanicalSystem.h"
 #include "engine/Simulation.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
@@ -28,7 +29,7 @@ std::unique_ptr<Scene> buildScene(const std::string& method) {
     <ConstantForceField indices="0 5 7" forces="1 2 3  -1 0 4  0.5 0.5 0.5"/>
   </Node>
 </Node>)";
-  auto scene = Scene::build(io::parseSceneText(xml, "energy.xml"));
+  auto scene = buildScene(io::parseSceneText(xml, "energy.xml"));
   scene->init();
   return scene;
 }

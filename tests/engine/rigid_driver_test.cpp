@@ -13,8 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "tests/support/TempDir.h"
@@ -27,7 +28,7 @@ using viscera::test_support::TempDir;
 namespace {
 
 std::unique_ptr<Scene> build(const std::string& text, const std::string& file = "rigid_test.xml") {
-  return Scene::build(io::parseSceneText(text, file));
+  return buildScene(io::parseSceneText(text, file));
 }
 
 // The error message of building and initialising `text`, or "" if it succeeds.

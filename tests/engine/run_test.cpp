@@ -9,9 +9,10 @@
 #include <string>
 #include <thread>
 
+#include "builtin/Builtins.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -32,7 +33,7 @@ const char* kDropScene = R"(<Node name="root" dt="0.01" gravity="0 0 -10">
 </Node>)";
 
 TEST(Run, ResultFiguresMatchTheSimulation) {
-  auto scene = Scene::build(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
+  auto scene = buildScene(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
   Simulation sim(*scene);
   struct Counter : RunObserver {
     int begun = -1, steps = 0, ended = 0;
@@ -76,7 +77,7 @@ TEST(Run, ResultFiguresMatchTheSimulation) {
 }
 
 TEST(Run, ACorrectionChangesTheStateBeforeMappingsAndObserversSeeIt) {
-  auto scene = Scene::build(io::parseSceneText(kDropScene, "drop.xml"));
+  auto scene = buildScene(io::parseSceneText(kDropScene, "drop.xml"));
   Simulation sim(*scene);
   MechanicalObject& dofs = *scene->all<MechanicalObject>()[0];
   // Holds node 1 where it started, after every solve.
@@ -107,7 +108,7 @@ TEST(Run, ACorrectionChangesTheStateBeforeMappingsAndObserversSeeIt) {
 TEST(Run, AnInactiveNodeIsNotSimulatedAndTheRunSaysSo) {
   std::string text = kDropScene;
   text.replace(text.find("<Node name=\"body\">"), 18, "<Node name=\"body\" activated=\"false\">");
-  auto scene = Scene::build(io::parseSceneText(text, "drop.xml"));
+  auto scene = buildScene(io::parseSceneText(text, "drop.xml"));
   Simulation sim(*scene);
   EXPECT_TRUE(scene->all<MechanicalObject>().empty());
   bool said = false;
@@ -122,7 +123,7 @@ TEST(Run, AnInactiveNodeIsNotSimulatedAndTheRunSaysSo) {
   std::string linked = kDropScene;
   linked.replace(linked.find("<Node name=\"body\">"), 18, "<Node name=\"off\" activated=\"false\"><BoxROI name=\"box\" box=\"-1 -1 -1 1 1 1\"/></Node><Node name=\"body\">");
   linked.replace(linked.find("<UniformMass"), 12, "<FixedConstraint indices=\"@../off/box.indices\"/><UniformMass");
-  auto bad = Scene::build(io::parseSceneText(linked, "drop.xml"));
+  auto bad = buildScene(io::parseSceneText(linked, "drop.xml"));
   try {
     bad->init();
     FAIL() << "a link into an inactive node resolved";
@@ -133,7 +134,7 @@ TEST(Run, AnInactiveNodeIsNotSimulatedAndTheRunSaysSo) {
 
 // The final positions of a run of `desc` for `steps` steps with one worker thread.
 Eigen::Matrix3Xd finalPositions(const SceneDesc& desc, int steps) {
-  auto scene = Scene::build(desc);
+  auto scene = buildScene(desc);
   RunOptions o;
   o.steps = steps;
   o.threads = 1;

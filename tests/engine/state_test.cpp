@@ -8,9 +8,10 @@
 #include <memory>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -48,7 +49,7 @@ TEST(State, PalpationSavedAtStep500ContinuesBitIdentically) {
   TempDir tmp;
 
   // Uninterrupted run, with the state captured on the way.
-  auto whole = Scene::build(desc);
+  auto whole = buildScene(desc);
   Simulation a(*whole);
   RunOptions first;
   first.steps = saveAt;
@@ -65,7 +66,7 @@ TEST(State, PalpationSavedAtStep500ContinuesBitIdentically) {
   ASSERT_GT(ra.instruments.at(0).stepsInContact, 0);
 
   // A fresh simulation of the same scene, restored from the file.
-  auto resumed = Scene::build(desc);
+  auto resumed = buildScene(desc);
   Simulation b(*resumed);
   const State loaded = State::load(tmp / "mid.state");
   EXPECT_TRUE(loaded == mid);
@@ -83,7 +84,7 @@ TEST(State, PalpationSavedAtStep500ContinuesBitIdentically) {
 }
 
 TEST(State, RestoringIntoTheSameSimulationRewindsIt) {
-  auto scene = Scene::build(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
+  auto scene = buildScene(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
   Simulation sim(*scene);
   RunOptions o;
   o.steps = 200;
@@ -100,8 +101,8 @@ TEST(State, RestoringIntoTheSameSimulationRewindsIt) {
 }
 
 TEST(State, AStateOfAnotherModelIsRefusedAndChangesNothing) {
-  auto coarse = Scene::build(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
-  auto fine = Scene::build(readSceneWithoutExports("scenes/gel_phantom.xml"));
+  auto coarse = buildScene(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
+  auto fine = buildScene(readSceneWithoutExports("scenes/gel_phantom.xml"));
   Simulation a(*coarse), b(*fine);
   const State sb = b.captureState(), sa = a.captureState();
   try {
@@ -115,14 +116,14 @@ TEST(State, AStateOfAnotherModelIsRefusedAndChangesNothing) {
   // Same structure, other parameters: fine (a variant continues from the state of another).
   SceneDesc stiff = readSceneWithoutExports("scenes/gel_phantom_coarse.xml");
   stiff.set("phantom/fem.youngModulus", "8 kPa");
-  auto variant = Scene::build(stiff);
+  auto variant = buildScene(stiff);
   Simulation c(*variant);
   EXPECT_NO_THROW(c.restoreState(sa));
 }
 
 TEST(State, FilesThatAreNotStatesAreErrorsNamingTheFile) {
   TempDir tmp;
-  auto scene = Scene::build(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
+  auto scene = buildScene(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
   Simulation sim(*scene);
   sim.captureState().save(tmp / "ok.state");
   std::string bytes;

@@ -14,8 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/fem/TetKernel.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
@@ -37,7 +38,7 @@ struct Sim {
 
 Sim build(const std::string& xml) {
   Sim r;
-  r.scene = Scene::build(io::parseSceneText(xml, "inline.xml"));
+  r.scene = buildScene(io::parseSceneText(xml, "inline.xml"));
   r.sim = std::make_unique<Simulation>(*r.scene);
   r.mo = r.scene->all<MechanicalObject>().at(0);
   auto f = r.scene->all<TetrahedronFEMForceField>();

@@ -5,7 +5,7 @@
 #include <limits>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 using viscera::io::VolumeMesh;

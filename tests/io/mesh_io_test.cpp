@@ -1,4 +1,4 @@
-// Mesh readers on the reference cube in every format, and .vtu/.pvd/atomic writers.
+// Mesh readers on the reference cube in every format, and .vtu/.pvd writers.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -15,7 +15,7 @@
 
 #include <Eigen/Dense>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace fs = std::filesystem;
@@ -266,59 +266,6 @@ TEST(MeshWrite, PvdCollection) {
   EXPECT_CONTAINS(text, "</Collection>\n</VTKFile>\n");
   const std::string msg = errorOf([&] { viscera::io::writePvd(path, {{std::nan(""), "a.vtu"}}); });
   EXPECT_CONTAINS(msg, path);
-}
-
-TEST(MeshWrite, AtomicWriteReplacesAndLeavesNoTemporary) {
-  const TempFolder dir;
-  const std::string path = (dir / "out.txt").string();
-  viscera::io::writeFileAtomic(path, "first");
-  viscera::io::writeFileAtomic(path, "second, longer content");
-  EXPECT_EQ(slurp(path), "second, longer content");
-  viscera::io::writeFileAtomic(path, "");
-  EXPECT_EQ(slurp(path), "");
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
-}
-
-TEST(MeshWrite, AtomicWriteIntoMissingFolderThrowsAndCreatesNothing) {
-  const TempFolder dir;
-  const fs::path missing = dir / "no_such_folder";
-  const std::string path = (missing / "out.vtu").string();
-  const std::string msg = errorOf([&] { viscera::io::writeFileAtomic(path, "data"); });
-  EXPECT_CONTAINS(msg, path);
-  EXPECT_CONTAINS(msg, "No such file or directory");
-  EXPECT_FALSE(fs::exists(missing));
-  EXPECT_TRUE(fs::is_empty(dir));
-
-  spit(dir / "plain_file", "x");  // a file where a folder should be: fails even for root
-  const std::string underFile = (dir / "plain_file" / "out.vtu").string();
-  EXPECT_CONTAINS(errorOf([&] { viscera::io::writeFileAtomic(underFile, "data"); }), underFile);
-  EXPECT_EQ(slurp(dir / "plain_file"), "x");
-}
-
-TEST(MeshWrite, AtomicWriteOverAFolderKeepsItAndRemovesTheTemporary) {
-  const TempFolder dir;
-  fs::create_directory(dir / "target");
-  spit(dir / "target" / "inside", "kept");
-  const std::string path = (dir / "target").string();
-  const std::string msg = errorOf([&] { viscera::io::writeFileAtomic(path, "data"); });
-  EXPECT_CONTAINS(msg, path);
-  EXPECT_TRUE(fs::is_directory(dir / "target"));
-  EXPECT_EQ(slurp(dir / "target" / "inside"), "kept");
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
-}
-
-TEST(MeshWrite, AtomicWriteInReadOnlyFolderKeepsTheOldFile) {
-  if (::geteuid() == 0) GTEST_SKIP() << "root ignores folder permissions";
-  const TempFolder dir;
-  const std::string path = (dir / "out.txt").string();
-  viscera::io::writeFileAtomic(path, "old");
-  fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);
-  const std::string msg = errorOf([&] { viscera::io::writeFileAtomic(path, "new"); });
-  fs::permissions(dir, fs::perms::owner_all);
-  EXPECT_CONTAINS(msg, path);
-  EXPECT_CONTAINS(msg, "Permission denied");
-  EXPECT_EQ(slurp(path), "old");
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);
 }
 
 }  // namespace

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 
 namespace fs = std::filesystem;

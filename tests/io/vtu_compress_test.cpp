@@ -18,9 +18,10 @@
 
 #include <Eigen/Core>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Error.h"
-#include "engine/core/Scene.h"
+#include "core/Error.h"
+#include "core/Scene.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/SceneReader.h"
 #include "tests/support/TempDir.h"
@@ -525,7 +526,7 @@ TEST(VtuCompress, ExporterCompressesByDefault) {
     </Node>
 </Node>
 )");
-  auto scene = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+  auto scene = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   scene->setOutputDirectory(dir / "out");
   viscera::Simulation sim(*scene);
   sim.begin();

@@ -6,8 +6,9 @@
 #include <memory>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mapping/VisualModel.h"
 #include "io/scene/SceneReader.h"
 #include "tests/apps/cli_helpers.h"
@@ -69,7 +70,7 @@ TEST(VisualCli, MissingSurfaceFileExitsWithTwoAndWritesNothing) {
 }
 
 TEST(VisualCli, ExampleSceneSurfaceLiesInsideThePhantom) {
-  auto scene = viscera::Scene::build(viscera::io::readScene(sourcePath("scenes/gel_phantom_visual.xml")));
+  auto scene = viscera::buildScene(viscera::io::readScene(sourcePath("scenes/gel_phantom_visual.xml")));
   scene->init();
   // The rounded block of the example: 2218 vertices, 4432 triangles, none outside the
   // tetrahedra (so no extrapolation note).

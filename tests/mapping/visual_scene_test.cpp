@@ -15,8 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mapping/VisualModel.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
@@ -106,7 +107,7 @@ struct SceneRun {
   std::string error;
   SceneRun(const TempDir& dir, const std::string& text) {
     try {
-      scene = Scene::build(io::parseSceneText(text, dir / "scene.xml"));
+      scene = buildScene(io::parseSceneText(text, dir / "scene.xml"));
       scene->setOutputDirectory(dir / "out");
       sim = std::make_unique<Simulation>(*scene);
     } catch (const Error& e) {

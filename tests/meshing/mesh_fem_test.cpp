@@ -12,8 +12,9 @@
 #include <memory>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/mesh/Mesh.h"
 #include "io/meshing/Tetrahedralize.h"
@@ -59,7 +60,7 @@ struct Outcome {
 Outcome simulate(const TempDir& dir, const std::string& sceneText, int steps) {
   const std::string path = dir / "scene.xml";
   std::ofstream(path) << sceneText;
-  auto s = Scene::build(io::readScene(path));
+  auto s = buildScene(io::readScene(path));
   s->setOutputDirectory(dir / "out");
   Simulation sim(*s);
   for (int i = 0; i < steps; ++i) {

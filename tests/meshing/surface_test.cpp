@@ -9,7 +9,7 @@
 #include <string>
 
 #include "tests/support/ErrorOf.h"
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/surface/SurfaceMesh.h"
 #include "tests/meshing/shapes.h"
 #include "tests/support/TempDir.h"

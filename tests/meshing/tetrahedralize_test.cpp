@@ -16,7 +16,7 @@
 #include <functional>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "tests/meshing/shapes.h"
 #include "tests/support/TempDir.h"

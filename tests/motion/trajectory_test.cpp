@@ -8,7 +8,7 @@
 #include <iterator>
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "motion/Trajectory.h"
 #include "tests/support/TempDir.h"
 

@@ -10,7 +10,7 @@
 #include <tuple>
 
 #include "tests/support/ErrorOf.h"
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/pointcloud/CloudPrep.h"
 #include "tests/pointcloud/synthetic_capture.h"
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "tests/support/ErrorOf.h"
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/pointcloud/CloudIo.h"
 #include "tests/support/TempDir.h"
 

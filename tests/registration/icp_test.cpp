@@ -6,8 +6,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "engine/core/Error.h"
-#include "engine/observation/Registration.h"
+#include "core/Error.h"
+#include "observation/Registration.h"
 #include "tests/registration/phantom.h"
 
 using namespace registration_test;

@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "engine/observation/SurfaceIndex.h"
+#include "observation/SurfaceIndex.h"
 #include "engine/topology/GridSplit.h"
 #include "io/scene/Transform.h"
 

@@ -9,8 +9,8 @@
 #include <string>
 
 #include "tests/support/ErrorOf.h"
-#include "engine/core/Error.h"
-#include "engine/observation/Registration.h"
+#include "core/Error.h"
+#include "observation/Registration.h"
 #include "tests/registration/phantom.h"
 
 using namespace registration_test;

@@ -9,9 +9,10 @@
 #include <memory>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
-#include "engine/observation/Registration.h"
+#include "core/Scene.h"
+#include "observation/Registration.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "io/scene/Transform.h"
@@ -71,7 +72,7 @@ TEST(SceneTransform, RegisteredTrajectoryTouchesTheSceneCorners) {
   viscera::writeTransform(dir / "robot_to_scene.txt", reg.transform, "robot -> scene");
   write(dir / "scene.xml", scene(R"(transform="robot_to_scene.txt")"));  // relative to the scene's folder
 
-  auto s = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+  auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
   RigidObject& b = tool(*s);
   const Eigen::Quaterniond expectedQ = Eigen::Quaterniond(robotToScene.linear()) * toolQ;
@@ -99,7 +100,7 @@ TEST(SceneTransform, AppliedBeforeRotationAndTranslation) {
   write(dir / "t.txt", "# quarter turn\n0 -1 0 10\n1 0 0 0\n0 0 1 0\n0 0 0 1\n");
   // rotation="90 0 0": a quarter turn about x (y -> z, z -> -y); then translation (0, 0, 100).
   write(dir / "scene.xml", scene(R"(transform="t.txt" rotation="90 0 0" translation="0 0 100")"));
-  auto s = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+  auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
   RigidObject& b = tool(*s);
   // By hand for (1, 2, 3): file -> (-2 + 10, 1, 3) = (8, 1, 3); about x -> (8, -3, 1); + t -> (8, -3, 101).
@@ -114,7 +115,7 @@ TEST(SceneTransform, AppliedBeforeRotationAndTranslation) {
 
 std::string initError(const TempDir& dir) {
   try {
-    auto s = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+    auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
     s->init();
   } catch (const viscera::Error& e) {
     return e.what();

@@ -6,8 +6,9 @@
 #include <fstream>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "robot/espm/Capture.h"
@@ -65,8 +66,8 @@ TEST(EspmDriver, CaptureReplaysTheJointLogToTheEncoderResolution) {
   write(dir / "espm.xml", scene(R"(<EspmDriver name="arm" filename="arm.espm" transform="psm.txt"/>)"));
   write(dir / "joints.xml", scene(R"(<PsmJointDriver name="arm" filename="joints.csv" transform="psm.txt"/>)"));
 
-  auto fromCapture = viscera::Scene::build(viscera::io::readScene(dir / "espm.xml"));
-  auto fromLog = viscera::Scene::build(viscera::io::readScene(dir / "joints.xml"));
+  auto fromCapture = viscera::buildScene(viscera::io::readScene(dir / "espm.xml"));
+  auto fromLog = viscera::buildScene(viscera::io::readScene(dir / "joints.xml"));
   viscera::Simulation a(*fromCapture), b(*fromLog);
   viscera::FieldValue crc, packets;
   const viscera::Component& driver = *fromCapture->all<viscera::Component>().back();
@@ -104,7 +105,7 @@ TEST(EspmDriver, JointOutsideTheLimitsNamesThePacket) {
   o.potUpper.fill(2);
   espm::writeCapture(dir / "arm.espm", espm::synthesizeCapture(log, o), {espm::Framing::Public});
   write(dir / "espm.xml", scene(R"(<EspmDriver name="arm" filename="arm.espm" framing="public"/>)"));
-  const std::string msg = errorOf([&] { viscera::Scene::build(viscera::io::readScene(dir / "espm.xml"))->init(); });
+  const std::string msg = errorOf([&] { viscera::buildScene(viscera::io::readScene(dir / "espm.xml"))->init(); });
   EXPECT_NE(msg.find(dir / "arm.espm: packet at byte 5000 (t = 0.002 s): joint 2 'outer_pitch' = 1.2 rad is outside [-0.925, 0.925] rad"),
             std::string::npos) << msg;
   EXPECT_NE(msg.find("EspmDriver.filename"), std::string::npos) << msg;
@@ -114,7 +115,7 @@ TEST(EspmDriver, GarbageFileIsAnError) {
   TempDir dir("viscera_espm_driver");
   write(dir / "arm.espm", std::string(5000, 'x'));
   write(dir / "espm.xml", scene(R"(<EspmDriver name="arm" filename="arm.espm"/>)"));
-  const std::string msg = errorOf([&] { viscera::Scene::build(viscera::io::readScene(dir / "espm.xml"))->init(); });
+  const std::string msg = errorOf([&] { viscera::buildScene(viscera::io::readScene(dir / "espm.xml"))->init(); });
   EXPECT_EQ(msg.rfind(dir / "arm.espm", 0), 0u) << msg;
   EXPECT_NE(msg.find("EspmDriver.filename"), std::string::npos) << msg;
 }

@@ -8,8 +8,9 @@
 #include <fstream>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "io/scene/Transform.h"
@@ -87,7 +88,7 @@ TEST(PsmJointDriver, CheckPoseThroughTheTransformInSceneUnits) {
   T.translation() = Eigen::Vector3d(30, 20, 160);
   viscera::writeTransform(dir / "psm.txt", T, "robot -> scene (mm)");
   write(dir / "scene.xml", scene(R"(transform="psm.txt" translation="1 2 3")"));
-  auto s = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+  auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
   const Eigen::Vector3d expected = T * Eigen::Vector3d(0, 0, -113.5) + Eigen::Vector3d(1, 2, 3);
   // Tolerance: a few ulps of the ~200 mm coordinates through the 6-joint chain and the transform.
@@ -105,7 +106,7 @@ TEST(PsmJointDriver, FollowsTheKinematicPathBetweenSamples) {
   TempDir dir("viscera_psm");
   write(dir / "joints.csv", "0,-0.6,-0.4,0.15,0.3,0.2,-0.1\n1,0.6,0.4,0.15,0.3,0.2,-0.1\n");
   write(dir / "scene.xml", scene("", "m kg s", "0.05"));
-  auto s = viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"));
+  auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
   const viscera::robot::SerialChain psm = viscera::robot::psmLargeNeedleDriver();
   Eigen::VectorXd q0(6), q1(6);
@@ -137,20 +138,20 @@ TEST(PsmJointDriver, JointOutsideTheLimitsNamesTheLogLineAndTheScene) {
   TempDir dir("viscera_psm");
   write(dir / "joints.csv", "t,q1,q2,q3,q4,q5,q6\n0,0,0,0.12,0,0,0\n1,0,0,0.3,0,0,0\n");
   write(dir / "scene.xml", scene(""));
-  const std::string msg = errorOf([&] { viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"))->init(); });
+  const std::string msg = errorOf([&] { viscera::buildScene(viscera::io::readScene(dir / "scene.xml"))->init(); });
   EXPECT_NE(msg.find(dir / "joints.csv:3: joint 3 'outer_insertion' = 0.3 m is outside [0, 0.24] m"), std::string::npos) << msg;
   EXPECT_NE(msg.find("scene.xml:4:"), std::string::npos) << msg;
   EXPECT_NE(msg.find("PsmJointDriver.filename"), std::string::npos) << msg;
   // checkLimits="false" replays it as recorded.
   write(dir / "scene.xml", scene(R"(checkLimits="false")"));
-  EXPECT_NO_THROW(viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"))->init());
+  EXPECT_NO_THROW(viscera::buildScene(viscera::io::readScene(dir / "scene.xml"))->init());
 }
 
 TEST(PsmJointDriver, BadLogNamesTheFileLine) {
   TempDir dir("viscera_psm");
   write(dir / "joints.csv", "t,q1,q2,q3,q4,q5,q6\n0,0,0,0.12,0,0\n");
   write(dir / "scene.xml", scene(""));
-  const std::string msg = errorOf([&] { viscera::Scene::build(viscera::io::readScene(dir / "scene.xml"))->init(); });
+  const std::string msg = errorOf([&] { viscera::buildScene(viscera::io::readScene(dir / "scene.xml"))->init(); });
   EXPECT_NE(msg.find(dir / "joints.csv:2: expected 7 columns (t,q1,q2,q3,q4,q5,q6), got 6 (read for"), std::string::npos) << msg;
 }
 

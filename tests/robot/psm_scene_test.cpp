@@ -7,8 +7,9 @@
 #include <cmath>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -23,7 +24,7 @@ std::string source(const std::string& rel) { return std::string(VISCERA_SOURCE_D
 
 TEST(PsmPalpationScene, InstrumentFollowsTheJointLogAndIndentsThePhantom) {
   viscera::test_support::TempDir out("viscera_psm_scene");
-  auto scene = viscera::Scene::build(viscera::io::readScene(source("scenes/psm_palpation.xml")));
+  auto scene = viscera::buildScene(viscera::io::readScene(source("scenes/psm_palpation.xml")));
   scene->setOutputDirectory(out.str());  // the scene's VTKExporter writes here, not beside the scene
   viscera::Simulation sim(*scene);
   const viscera::RigidObject& tool = *scene->all<viscera::RigidObject>().front();

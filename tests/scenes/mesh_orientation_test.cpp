@@ -5,6 +5,7 @@
 // Regression test for the "polar" health check: with negatively oriented elements the polar frame
 // is a reflection, and TetrahedronFEMForceField::invertedElements reported every element as
 // inverted at the first step (see the report that came with this test).
+#include "builtin/Builtins.h"
 #include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
@@ -15,7 +16,7 @@
 #include <string>
 
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
 
@@ -70,7 +71,7 @@ Outcome simulate(const TempDir& dir, bool negative, const std::string& method) {
   write(scene, cubeScene(mesh, method));
   Outcome r;
   try {
-    auto s = Scene::build(io::readScene(scene.string()));
+    auto s = buildScene(io::readScene(scene.string()));
     s->setOutputDirectory((dir.path() / "out").string());
     Simulation sim(*s);
     for (int i = 0; i < 20 && r.failure.empty(); ++i)

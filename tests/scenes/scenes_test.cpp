@@ -1,6 +1,7 @@
 // Every scene shipped in scenes/ (found at test time, so new scenes are covered without editing this
 // file) loads, runs 20 steps without failure, and writes a .pvd index with the .vtu files it names
 // into the output folder, not next to the scene.
+#include "builtin/Builtins.h"
 #include "tests/support/TempDir.h"
 #include <gtest/gtest.h>
 #include <stdlib.h>
@@ -16,7 +17,7 @@
 #include <vector>
 
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
 
@@ -58,7 +59,7 @@ TEST(Scenes, EveryShippedSceneRuns20StepsAndExports) {
     const fs::path out = tmp.path() / "out";
     std::unique_ptr<Scene> scene;
     try {
-      scene = Scene::build(io::readScene(path.string()));
+      scene = buildScene(io::readScene(path.string()));
     } catch (const std::exception& e) {
       ADD_FAILURE() << "does not load: " << e.what();
       continue;

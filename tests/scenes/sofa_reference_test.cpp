@@ -13,8 +13,9 @@
 #include <sstream>
 #include <string>
 
+#include "builtin/Builtins.h"
 #include "engine/Simulation.h"
-#include "engine/core/Scene.h"
+#include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
 
@@ -60,7 +61,7 @@ Result runMethod(const std::string& method) {
   if (!::mkdtemp(t.data())) throw std::runtime_error("mkdtemp failed");
   try {
     res.sofa = readVtkPoints(refDir() + "beam_" + method + ".100steps.vtk");
-    auto scene = Scene::build(io::readScene(refDir() + "beam_" + method + ".scn"));
+    auto scene = buildScene(io::readScene(refDir() + "beam_" + method + ".scn"));
     scene->setOutputDirectory(t);
     res.notes = scene->notes();
     Simulation sim(*scene);

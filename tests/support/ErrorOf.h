@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 
 namespace viscera::test_support {
 

@@ -6,7 +6,7 @@
 #include <functional>
 #include <string>
 
-#include "engine/core/SceneDesc.h"
+#include "core/SceneDesc.h"
 #include "io/scene/SceneReader.h"
 
 namespace viscera::test_support {

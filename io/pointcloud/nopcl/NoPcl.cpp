@@ -3,7 +3,7 @@
 // without it.
 #include <string>
 
-#include "engine/core/Error.h"
+#include "core/Error.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/pointcloud/CloudPrep.h"
 

@@ -1,0 +1,64 @@
+// Registers every built-in component and the SOFA elements accepted without effect.
+#include "builtin/Builtins.h"
+
+namespace viscera {
+
+void registerMechanicalObject(Registry&);
+void registerMasses(Registry&);
+void registerConstraints(Registry&);
+void registerTopologies(Registry&);
+void registerTetrahedronFEM(Registry&);
+void registerVTKExporter(Registry&);
+void registerLinearSolvers(Registry&);
+void registerEulerImplicit(Registry&);
+void registerStaticSolver(Registry&);
+void registerDrivers(Registry&);
+void registerCollision(Registry&);
+void registerConstraintContact(Registry&);
+void registerMappings(Registry&);
+void registerObservation(Registry&);
+void registerRobotDrivers(Registry&);
+
+void registerBuiltins(Registry& r) {
+  registerMechanicalObject(r);
+  registerMasses(r);
+  registerConstraints(r);
+  registerTopologies(r);
+  registerTetrahedronFEM(r);
+  registerVTKExporter(r);
+  registerLinearSolvers(r);
+  registerEulerImplicit(r);
+  registerStaticSolver(r);
+  registerDrivers(r);
+  registerCollision(r);
+  registerConstraintContact(r);
+  registerMappings(r);
+  registerObservation(r);
+  registerRobotDrivers(r);
+
+  const char* drawing = "drawing only";
+  for (const char* t : {"VisualStyle", "OglSceneFrame", "LightManager", "DirectionalLight",
+                        "SpotLight", "InteractiveCamera", "Camera", "BackgroundSetting", "DefaultVisualManagerLoop",
+                        "VisualGrid", "LineAxis"})
+    r.addIgnored(t, drawing);
+  r.addIgnored("RequiredPlugin", "plugins are built in");
+  r.addIgnored("DefaultAnimationLoop", "the step loop is built in");
+  r.addIgnored("TetrahedronSetTopologyModifier", "topology changes are not needed");
+  r.addIgnored("TetrahedronSetGeometryAlgorithms", "geometry helpers are built in");
+  r.addIgnored("TriangleSetTopologyModifier", "topology changes are not needed");
+  r.addIgnored("TriangleSetGeometryAlgorithms", "geometry helpers are built in");
+  r.addIgnored("InfoComponent", "no effect");
+}
+
+const Registry& builtinRegistry() {
+  static const Registry r = [] {
+    Registry reg;
+    registerBuiltins(reg);
+    return reg;
+  }();
+  return r;
+}
+
+std::unique_ptr<Scene> buildScene(const SceneDesc& desc) { return Scene::build(desc, builtinRegistry()); }
+
+}  // namespace viscera

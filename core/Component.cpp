@@ -1,0 +1,64 @@
+#include "core/Component.h"
+
+#include <cmath>
+#include <stdexcept>
+
+#include "core/Scene.h"
+
+namespace viscera {
+
+Component::Component(BuildContext& ctx)
+    : attrs_(std::move(ctx.attrs())), spec_(ctx.spec()), node_(ctx.node()), scene_(ctx.scene()) {
+  name_ = ctx.name();
+}
+
+std::vector<double> Component::linkedReals(const std::string& attr) {
+  const AttrValue& v = attrs_.get(attr);
+  if (!v.link) return v.nums;
+  std::string path, field;
+  splitLink(v.text, path, field);
+  std::string what = attrs_.component() + "." + attr;
+  Component& src = scene_.resolve(*this, v.text, v.loc, what);
+  scene_.initComponent(src);
+  if (field.empty()) field = attr;
+  FieldValue out;
+  if (!src.field(field, out))
+    throw Error(v.loc, what + ": '" + src.name() + "' (" + src.typeName() + ") has no field '" + field + "'");
+  try {
+    checkAttrNumbers(*v.spec, out.values);
+  } catch (const std::invalid_argument& e) {
+    throw Error(v.loc, what + ": linked value: " + e.what());
+  }
+  return out.values;
+}
+
+std::vector<int> Component::linkedInts(const std::string& attr) {
+  std::vector<int> r;
+  for (double d : linkedReals(attr)) {
+    if (d != std::floor(d)) throw error(attr, "linked value is not an integer");
+    r.push_back(static_cast<int>(d));
+  }
+  return r;
+}
+
+Component* Component::linkedComponent(const std::string& attr) {
+  const AttrValue& v = attrs_.get(attr);
+  if (!v.set) return nullptr;
+  Component& c = scene_.resolve(*this, v.text, v.loc, attrs_.component() + "." + attr);
+  scene_.initComponent(c);
+  return &c;
+}
+
+Node& Node::addChild(std::string name, SourceLoc loc) {
+  children_.push_back(std::make_unique<Node>(std::move(name), this, std::move(loc)));
+  return *children_.back();
+}
+
+Component& Node::addComponent(std::unique_ptr<Component> c) {
+  components_.push_back(std::move(c));
+  return *components_.back();
+}
+
+std::string Node::path() const { return parent_ ? parent_->path() + "/" + name_ : "/" + name_; }
+
+}  // namespace viscera

@@ -1,0 +1,258 @@
+#include "core/Scene.h"
+
+#include <filesystem>
+#include <stdexcept>
+
+namespace viscera {
+
+namespace {
+
+// Components without their own `template` attribute take the template of the state they act on;
+// they check at init that it is one they support.
+bool isTemplateOk(const std::string& t) {
+  return t == "Vec3d" || t == "Vec3" || t == "Vec3f" || t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f";
+}
+
+// Parses the element's attributes against `spec` into validated values.
+Attributes parseAttributes(const ElementDesc& el, const ComponentSpec& spec, const UnitSystem& units,
+                           std::vector<std::string>& notes) {
+  Attributes attrs(el.tag, el.loc);
+  for (const auto& a : spec.attrs) {
+    AttrValue v;
+    v.spec = &a;
+    v.text = a.defaultValue;
+    v.loc = el.loc;
+    if (!a.defaultValue.empty() && a.kind != AttrKind::Link) parseAttrText(a, a.defaultValue, units, v);
+    attrs.values()[a.name] = std::move(v);
+  }
+  for (const auto& given : el.attrs) {
+    const AttrSpec* a = spec.find(given.name);
+    if (!a) {
+      if (given.name == "name") continue;
+      if (given.name == "template" && !spec.find("template")) {
+        if (!isTemplateOk(given.value))
+          throw Error(given.loc, el.tag + ".template: '" + given.value + "' is not supported here (Vec3d or Rigid3d)");
+        continue;
+      }
+      if (isCosmeticAttribute(given.name)) {
+        notes.push_back(given.loc.str() + ": note: " + el.tag + "." + given.name + " does not change the physics; ignored");
+        continue;
+      }
+      std::string known;
+      for (const auto& s : spec.attrs) known += (known.empty() ? "" : ", ") + s.name;
+      throw Error(given.loc, el.tag + "." + given.name + ": unknown attribute (" + spec.name + " has: " + known + ")");
+    }
+    AttrValue& v = attrs.values()[a->name];
+    if (v.set)
+      throw Error(given.loc, el.tag + "." + given.name + ": given twice (also as another name of " + a->name + ")");
+    v.set = true;
+    v.text = given.value;
+    v.loc = given.loc;
+    v.nums.clear();
+    v.link = false;
+    try {
+      if (a->kind == AttrKind::Link) {
+        if (given.value.empty() || given.value[0] != '@') throw std::invalid_argument("a link must start with '@'");
+        v.link = true;
+      } else if (a->linkable && !given.value.empty() && given.value[0] == '@') {
+        v.link = true;
+      } else {
+        parseAttrText(*a, given.value, units, v);
+      }
+    } catch (const std::invalid_argument& e) {
+      throw Error(given.loc, el.tag + "." + given.name + ": " + e.what());
+    }
+  }
+  for (const auto& a : spec.attrs)
+    if (a.required && !attrs.values()[a.name].set)
+      throw Error(el.loc, el.tag + "." + a.name + ": required attribute is missing");
+  return attrs;
+}
+
+std::string nameOf(const ElementDesc& el, const std::string& fallback) {
+  const AttrDesc* n = el.find("name");
+  return n && !n->value.empty() ? n->value : fallback;
+}
+
+struct Builder {
+  const Registry& registry;
+  Scene& scene;
+  std::vector<std::string>& notes;
+
+  void buildNode(const ElementDesc& el, Node& node, const UnitSystem& units, bool isRoot) {
+    // Node attributes (root settings are read by Scene::build).
+    Attributes na = parseAttributes(el, Registry::nodeSpec(), units, notes);
+    if (!isRoot)
+      for (const char* rootOnly : {"dt", "gravity", "units", "time"})
+        if (na.isSet(rootOnly)) throw na.error(rootOnly, "only the root node may set this");
+    if (!na.boolean("activated")) {
+      node.setActive(false);
+      notes.push_back(el.loc.str() + ": note: node '" + node.name() + "' is inactive (activated=\"false\"): it and its "
+                      "sub-nodes are not simulated");
+    }
+    for (const auto& child : el.children) {
+      if (child.tag == "Node") {
+        Node& sub = node.addChild(nameOf(child, "Node"), child.loc);
+        buildNode(child, sub, units, false);
+        continue;
+      }
+      if (const std::string* why = registry.ignoredReason(child.tag)) {
+        notes.push_back(child.loc.str() + ": note: " + child.tag + " ignored (" + *why + ")");
+        continue;
+      }
+      const ComponentSpec* spec = registry.find(child.tag);
+      if (!spec) {
+        std::string msg = "unknown component '" + child.tag + "'";
+        auto s = registry.suggest(child.tag);
+        if (!s.empty()) {
+          msg += " (did you mean ";
+          for (size_t i = 0; i < s.size(); ++i) msg += (i ? ", " : "") + s[i];
+          msg += "?)";
+        }
+        msg += "; `viscera components` lists the supported ones";
+        throw Error(child.loc, msg);
+      }
+      if (!spec->factory) {
+        notes.push_back(child.loc.str() + ": note: " + child.tag + " ignored (" + spec->doc + ")");
+        continue;
+      }
+      Attributes attrs = parseAttributes(child, *spec, units, notes);
+      BuildContext ctx(*spec, std::move(attrs), node, scene, nameOf(child, spec->name));
+      node.addComponent(spec->factory(ctx));
+    }
+  }
+};
+
+}  // namespace
+
+void splitLink(const std::string& link, std::string& path, std::string& field) {
+  std::string s = !link.empty() && link[0] == '@' ? link.substr(1) : link;
+  size_t slash = s.rfind('/');
+  size_t dot = s.find('.', slash == std::string::npos ? 0 : slash + 1);
+  // "../x" has dots that are not a field separator
+  while (dot != std::string::npos && dot + 1 < s.size() && s[dot + 1] == '.') dot = s.find('.', dot + 2);
+  if (dot != std::string::npos && dot > 0 && s[dot - 1] != '.') {
+    path = s.substr(0, dot);
+    field = s.substr(dot + 1);
+  } else {
+    path = s;
+    field.clear();
+  }
+}
+
+std::unique_ptr<Scene> Scene::build(const SceneDesc& desc, const Registry& registry) {
+  auto scene = std::unique_ptr<Scene>(new Scene());
+  scene->file_ = desc.file;
+  scene->dir_ = desc.directory;
+  const ElementDesc& rootEl = desc.root;
+  if (rootEl.tag != "Node")
+    throw Error(rootEl.loc, "the root element must be <Node>, got <" + rootEl.tag + ">");
+  // The unit system comes first: other root values may carry units.
+  if (const AttrDesc* u = rootEl.find("units")) {
+    try {
+      scene->units_ = UnitSystem::parse(u->value);
+    } catch (const std::invalid_argument& e) {
+      throw Error(u->loc, std::string("Node.units: ") + e.what());
+    }
+  }
+  Attributes ra = parseAttributes(rootEl, Registry::nodeSpec(), scene->units_, scene->notes_);
+  scene->dt_ = ra.real("dt");
+  scene->startTime_ = ra.real("time");
+  if (ra.isSet("gravity")) {
+    const auto& g = ra.reals("gravity");
+    scene->gravity_ = Eigen::Vector3d(g[0], g[1], g[2]);
+  } else {
+    // The default (9.81 m/s^2 along -y) is in SI; express it in the scene's units.
+    scene->gravity_ = Eigen::Vector3d(0, -9.81, 0) / scene->units_.siOf(Dimension::acceleration());
+  }
+  scene->root_ = std::make_unique<Node>(nameOf(rootEl, "root"), nullptr, rootEl.loc);
+  Builder b{registry, *scene, scene->notes_};
+  b.buildNode(rootEl, *scene->root_, scene->units_, true);
+  return scene;
+}
+
+std::string Scene::resolvePath(const std::string& p) const {
+  namespace fs = std::filesystem;
+  fs::path path(p);
+  if (path.is_absolute() || dir_.empty()) return p;
+  return (fs::path(dir_) / path).lexically_normal().string();
+}
+
+std::string Scene::outputPath(const std::string& p) const {
+  namespace fs = std::filesystem;
+  fs::path path(p);
+  if (path.is_absolute()) return p;
+  const std::string& base = outDir_.empty() ? dir_ : outDir_;
+  return base.empty() ? p : (fs::path(base) / path).lexically_normal().string();
+}
+
+namespace {
+void initTree(Scene& s, Node& n) {
+  if (!n.active()) return;
+  for (const auto& c : n.components()) s.initComponent(*c);
+  for (const auto& ch : n.children()) initTree(s, *ch);
+}
+}  // namespace
+
+void Scene::init() {
+  if (initialized_) return;
+  initTree(*this, *root_);
+  initialized_ = true;
+}
+
+void Scene::initComponent(Component& c) {
+  if (c.initState_ == 2) return;
+  if (c.initState_ == 1) throw c.error("circular links: this component depends on itself");
+  c.initState_ = 1;
+  c.init();
+  c.initState_ = 2;
+}
+
+Component& Scene::resolve(const Component& from, const std::string& link, const SourceLoc& loc, const std::string& what) {
+  std::string path, field;
+  splitLink(link, path, field);
+  std::vector<std::string> parts;
+  size_t start = 0;
+  bool absolute = !path.empty() && path[0] == '/';
+  if (absolute) start = 1;
+  while (start <= path.size()) {
+    size_t e = path.find('/', start);
+    if (e == std::string::npos) e = path.size();
+    if (e > start) parts.push_back(path.substr(start, e - start));
+    start = e + 1;
+  }
+  auto fail = [&](const std::string& why) -> Error {
+    return Error(loc, what + ": link '" + link + "': " + why);
+  };
+  if (parts.empty()) throw fail("empty link");
+  Node* node = absolute ? root_.get() : &from.node();
+  // An absolute path may name the root node first.
+  size_t i = 0;
+  if (absolute && parts.size() > 1 && parts[0] == root_->name()) i = 1;
+  for (; i + 1 < parts.size(); ++i) {
+    if (parts[i] == "..") {
+      if (!node->parent()) throw fail("goes above the root node");
+      node = node->parent();
+    } else if (parts[i] == ".") {
+      continue;
+    } else {
+      Node* next = nullptr;
+      for (const auto& ch : node->children())
+        if (ch->name() == parts[i]) next = ch.get();
+      if (!next) throw fail("no node '" + parts[i] + "' in " + node->path());
+      node = next;
+    }
+  }
+  const std::string& target = parts.back();
+  bool bare = parts.size() == 1 && !absolute;
+  for (Node* n = node; n; n = bare ? n->parent() : nullptr) {
+    for (const auto& c : n->components())
+      if (c->name() == target) {
+        if (!c->node().activeInTree()) throw fail("'" + target + "' is in the inactive node " + c->node().path());
+        return *c;
+      }
+  }
+  throw fail("no component named '" + target + "'" + (bare ? " in this node or its ancestors" : " in " + node->path()));
+}
+
+}  // namespace viscera

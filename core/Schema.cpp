@@ -1,0 +1,52 @@
+#include "core/Schema.h"
+
+#include <sstream>
+
+namespace viscera {
+
+const char* kindName(AttrKind k) {
+  switch (k) {
+    case AttrKind::Real: return "real";
+    case AttrKind::Int: return "int";
+    case AttrKind::Bool: return "bool";
+    case AttrKind::String: return "string";
+    case AttrKind::Enum: return "enum";
+    case AttrKind::Reals: return "real list";
+    case AttrKind::Ints: return "int list";
+    case AttrKind::Link: return "link";
+    case AttrKind::File: return "file";
+  }
+  return "?";
+}
+
+std::string AttrSpec::rangeText() const {
+  if (!lo && !hi) return "";
+  std::ostringstream s;
+  s << (lo && !loOpen ? "[" : "(");
+  if (lo) s << *lo; else s << "-inf";
+  s << ", ";
+  if (hi) s << *hi; else s << "inf";
+  s << (hi && !hiOpen ? "]" : ")");
+  return s.str();
+}
+
+const AttrSpec* ComponentSpec::find(const std::string& attr) const {
+  for (const auto& a : attrs) {
+    if (a.name == attr) return &a;
+    for (const auto& al : a.aliases)
+      if (al == attr) return &a;
+  }
+  return nullptr;
+}
+
+bool isCosmeticAttribute(const std::string& name) {
+  static const char* exact[] = {"printLog", "listening", "tags", "bbox", "componentState",
+                                "computeGlobalMatrix", "showIndices", "showIndicesScale",
+                                "showObject", "showObjectScale", "showColor", "color",
+                                "createTriangleArray", "checkTopology", "checkConnexity"};
+  for (const char* e : exact)
+    if (name == e) return true;
+  return name.rfind("draw", 0) == 0 || name.rfind("show", 0) == 0;
+}
+
+}  // namespace viscera
