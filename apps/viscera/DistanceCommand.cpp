@@ -54,80 +54,8 @@ struct DistanceCommandOptions {
 // ---------------------------------------------------------------------------------------------
 // The simulated surface: one mesh, or a series of mesh frames
 
-struct SeriesFrame {
-  double time = 0;
-  std::string path;
-};
-
-// Replaces the five XML entities.
-std::string xmlUnescape(const std::string& s) {
-  static const std::pair<const char*, char> kEntities[] = {{"&amp;", '&'}, {"&quot;", '"'}, {"&apos;", '\''}, {"&lt;", '<'}, {"&gt;", '>'}};
-  std::string out;
-  for (size_t i = 0; i < s.size();) {
-    bool replaced = false;
-    if (s[i] == '&')
-      for (const auto& [entity, c] : kEntities)
-        if (s.compare(i, std::strlen(entity), entity) == 0) {
-          out += c;
-          i += std::strlen(entity);
-          replaced = true;
-          break;
-        }
-    if (!replaced) out += s[i++];
-  }
-  return out;
-}
-
-// The frames of a ParaView collection (.pvd): its <DataSet timestep="..." file="..."/> elements,
-// files relative to the .pvd's folder, in time order.
-std::vector<SeriesFrame> readPvd(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(SourceLoc{path}, "cannot read the series file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  const std::string text = buffer.str();
-  const fs::path folder = fs::path(path).parent_path();
-  std::vector<SeriesFrame> frames;
-  for (size_t at = text.find("<DataSet"); at != std::string::npos; at = text.find("<DataSet", at + 1)) {
-    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n'));
-    const size_t end = text.find('>', at);
-    if (end == std::string::npos) throw Error(SourceLoc{path, line}, "unterminated <DataSet> element");
-    const std::string tag = text.substr(at, end - at);
-    // The value of attribute `name` (quoted with " or '), if present.
-    auto attribute = [&](const std::string& name) -> std::optional<std::string> {
-      for (size_t p = tag.find(name); p != std::string::npos; p = tag.find(name, p + 1)) {
-        if (p == 0 || !std::isspace(static_cast<unsigned char>(tag[p - 1]))) continue;
-        size_t q = p + name.size();
-        while (q < tag.size() && std::isspace(static_cast<unsigned char>(tag[q]))) ++q;
-        if (q >= tag.size() || tag[q] != '=') continue;
-        ++q;
-        while (q < tag.size() && std::isspace(static_cast<unsigned char>(tag[q]))) ++q;
-        if (q >= tag.size() || (tag[q] != '"' && tag[q] != '\'')) continue;
-        const size_t close = tag.find(tag[q], q + 1);
-        if (close == std::string::npos) continue;
-        return xmlUnescape(tag.substr(q + 1, close - q - 1));
-      }
-      return std::nullopt;
-    };
-    const auto time = attribute("timestep");
-    const auto file = attribute("file");
-    if (!file) throw Error(SourceLoc{path, line}, "<DataSet> without a file attribute");
-    if (!time) throw Error(SourceLoc{path, line}, "<DataSet> without a timestep attribute");
-    char* stop = nullptr;
-    const double t = std::strtod(time->c_str(), &stop);
-    if (time->empty() || stop != time->c_str() + time->size() || !std::isfinite(t))
-      throw Error(SourceLoc{path, line}, "timestep '" + *time + "' is not a finite number");
-    const fs::path f(*file);
-    frames.push_back({t, (f.is_absolute() ? f : folder / f).string()});
-  }
-  if (frames.empty()) throw Error(SourceLoc{path}, "the series has no <DataSet> frames");
-  std::stable_sort(frames.begin(), frames.end(), [](const SeriesFrame& a, const SeriesFrame& b) { return a.time < b.time; });
-  for (size_t i = 1; i < frames.size(); ++i)
-    if (frames[i].time == frames[i - 1].time)
-      throw Error(SourceLoc{path}, "two frames at time " + std::to_string(frames[i].time) + ": " + frames[i - 1].path + " and " +
-                                       frames[i].path);
-  return frames;
-}
+using io::readPvd;
+using io::SeriesFrame;
 
 // The triangle surface of a mesh file: the boundary of its tetrahedra (checked), or its triangles.
 obs::TriangleList surfaceOf(const io::VolumeMesh& mesh, const std::string& path) {

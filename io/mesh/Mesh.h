@@ -64,6 +64,16 @@ void writeVtp(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
 // Writes a .pvd collection: (time, file relative to the .pvd) pairs.
 void writePvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries);
 
+// One frame of a series: its time and its file (relative names resolved against the .pvd's folder).
+struct SeriesFrame {
+  double time = 0;
+  std::string path;
+};
+// The frames of a .pvd collection (its <DataSet timestep="..." file="..."/> elements) in time
+// order. Errors name the file and line: unreadable XML, a missing or non-finite timestep, a
+// missing file, no frames, two frames at one time.
+std::vector<SeriesFrame> readPvd(const std::string& path);
+
 
 // Writes a Gmsh MSH 2.2 ASCII file (atomically): the mesh's triangles (element type 2), when it
 // has any, then its tetrahedra (type 4), each with physical and elementary tag 1; nodes numbered

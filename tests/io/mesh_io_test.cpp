@@ -268,4 +268,29 @@ TEST(MeshWrite, PvdCollection) {
   EXPECT_CONTAINS(msg, path);
 }
 
+TEST(MeshRead, PvdReadsBackWhatWasWrittenInTimeOrder) {
+  const TempFolder dir;
+  const std::string path = (dir / "run.pvd").string();
+  viscera::io::writePvd(path, {{0.5, "b.vtu"}, {1.0 / 3.0, "a&b.vtu"}, {0.0, "/abs/first.vtu"}});
+  const auto frames = viscera::io::readPvd(path);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0].time, 0.0);
+  EXPECT_EQ(frames[0].path, "/abs/first.vtu");
+  EXPECT_EQ(frames[1].time, 1.0 / 3.0);  // bit-exact round trip
+  EXPECT_EQ(frames[1].path, (dir / "a&b.vtu").string());
+  EXPECT_EQ(frames[2].path, (dir / "b.vtu").string());
+
+  auto bad = [&](const std::string& name, const std::string& text) {
+    spit(dir / name, text);
+    return errorOf([&] { viscera::io::readPvd((dir / name).string()); });
+  };
+  const std::string head = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\">\n<Collection>\n";
+  EXPECT_CONTAINS(bad("t.pvd", head + "<DataSet file=\"a.vtu\"/>\n<DataSet timestep=\"x\" file=\"b.vtu\"/>\n</Collection></VTKFile>"),
+                  "t.pvd:4");
+  EXPECT_CONTAINS(bad("d.pvd", head + "<DataSet timestep=\"1\" file=\"a.vtu\"/><DataSet timestep=\"1\" file=\"b.vtu\"/></Collection></VTKFile>"),
+                  "two frames at time");
+  EXPECT_CONTAINS(bad("e.pvd", head + "</Collection></VTKFile>"), "no <DataSet> frames");
+  EXPECT_CONTAINS(bad("x.pvd", head + "<DataSet timestep=\"1\" file=\"a.vtu\"></Collection>"), "x.pvd:4");
+}
+
 }  // namespace
