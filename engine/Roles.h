@@ -51,6 +51,10 @@ class ForceField {
   virtual bool rayleighDamped() const { return true; }
   // Elements that are inverted at x (for the health check).
   virtual std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const { return {}; }
+  // Linearise with the exact tangent (the complete df/dx) where the default stiffness is an
+  // approximation, as the corotational FEM's R^T K0 R is; Newton solvers ask for it. Fields whose
+  // stiffness is exact already have nothing to change.
+  virtual void setExactTangent(bool on) {}
 };
 
 // Lumped (diagonal) mass; also applies gravity.

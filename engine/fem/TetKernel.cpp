@@ -124,9 +124,7 @@ ElementRest restElement(Method m, const Mat34& Xw, const Lame& lame) {
 }
 
 Eigen::Matrix3d stress(const ElementRest& e, const Mat34& U) {
-  const Eigen::Matrix3d H = U * e.G.transpose();
-  const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
-  return 2.0 * e.lame.mu * eps + e.lame.lambda * eps.trace() * Eigen::Matrix3d::Identity();
+  return e.lame.stress(U * e.G.transpose());
 }
 
 double vonMises(const Eigen::Matrix3d& s) {
@@ -141,14 +139,11 @@ Mat34 elementForce(Method m, const ElementRest& e, const Mat34& x, Eigen::Matrix
 }
 
 Mat12 elementStiffness(Method m, const ElementRest& e, const Eigen::Matrix3d& R) {
-  // Block (i, j) = -V R^T [lambda g_i g_j^T + mu g_j g_i^T + mu (g_i . g_j) I] R.
+  // Block (i, j) = -V times the law's coupling of the rotated gradients h = R^T G.
   const Mat34 h = R.transpose() * e.G;
   Mat12 K;
   for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j)
-      K.block<3, 3>(3 * i, 3 * j) =
-          -e.volume * (e.lame.lambda * h.col(i) * h.col(j).transpose() + e.lame.mu * h.col(j) * h.col(i).transpose() +
-                       e.lame.mu * e.G.col(i).dot(e.G.col(j)) * Eigen::Matrix3d::Identity());
+    for (int j = 0; j < 4; ++j) K.block<3, 3>(3 * i, 3 * j) = -e.volume * e.lame.coupling(h.col(i), h.col(j), e.G.col(i).dot(e.G.col(j)));
   return K;
 }
 

@@ -12,10 +12,24 @@ using Mat12 = Eigen::Matrix<double, 12, 12>;
 
 enum class Method { Small, Large, Polar };
 
+// The linear elastic (isotropic Hooke) law, the one place it is written: the kernels, the force
+// field's matrix-free product and its assembly all call it.
 struct Lame {
   double lambda = 0, mu = 0;
   static Lame fromYoungPoisson(double E, double nu) {
     return {E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))};
+  }
+  // Stress of a displacement gradient H (3 x 3): sigma = lambda tr(eps) I + 2 mu eps, eps = sym(H).
+  Eigen::Matrix3d stress(const Eigen::Matrix3d& H) const {
+    return lambda * H.trace() * Eigen::Matrix3d::Identity() + mu * (H + H.transpose());
+  }
+  // The law's coupling of element nodes i and j, whose rotated shape-function gradients are h_i,
+  // h_j (with g_i . g_j = gij at rest): lambda h_i h_j^T + mu h_j h_i^T + mu gij I. The element
+  // stiffness block (i, j) is -V times this.
+  Eigen::Matrix3d coupling(const Eigen::Vector3d& hi, const Eigen::Vector3d& hj, double gij) const {
+    Eigen::Matrix3d B = lambda * hi * hj.transpose() + mu * hj * hi.transpose();
+    B.diagonal().array() += mu * gij;
+    return B;
   }
 };
 
@@ -53,10 +67,7 @@ inline Mat34 localPositions(Method m, const Eigen::Matrix3d& R, const Mat34& x) 
 
 // Linear elastic nodal forces in the element frame for local displacements U: f = -V sigma G.
 inline Mat34 elasticForce(const ElementRest& e, const Mat34& U) {
-  const Eigen::Matrix3d H = U * e.G.transpose();
-  const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
-  const Eigen::Matrix3d sigma = 2.0 * e.lame.mu * eps + e.lame.lambda * eps.trace() * Eigen::Matrix3d::Identity();
-  return -e.volume * sigma * e.G;
+  return -e.volume * e.lame.stress(U * e.G.transpose()) * e.G;
 }
 
 // Cauchy stress (linear) for local displacements U.

@@ -84,15 +84,13 @@ void TetrahedronFEMForceField::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matr
     });
     return;
   }
-  // K dx per element without forming K: with h = R^T G and M = h dX^T,
-  // (K dx)_i = -V [lambda tr(M) h_i + mu (M + M^T) h_i].
+  // K dx per element without forming K: with h = R^T G and M = h dX^T, (K dx)_i = -V sigma(M) h_i.
   forEachColored(colors_, [&](int e) {
     const fem::ElementRest& r = rest_[e];
     const Mat34 h = rot_[e].transpose() * r.G;
     const Mat34 d = gather(dx, e);
     const Eigen::Matrix3d M = h * d.transpose();
-    const Eigen::Matrix3d S = r.lame.lambda * M.trace() * Eigen::Matrix3d::Identity() + r.lame.mu * (M + M.transpose());
-    const Mat34 out = (-kFactor * r.volume) * (S * h);
+    const Mat34 out = (-kFactor * r.volume) * (r.lame.stress(M) * h);
     for (int k = 0; k < 4; ++k) df.col(tets_(k, e)) += out.col(k);
   });
 }
@@ -119,7 +117,7 @@ void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor
         for (int j = 0; j < 4; ++j) K.block(slots_[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
       return;
     }
-    // Blocks -V [lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I], h = R^T G.
+    // Blocks -V times the law's coupling of the rotated gradients h = R^T G.
     const fem::ElementRest& r = rest_[e];
     const Mat34 h = rot_[e].transpose() * r.G;
     const double a = -kFactor * r.volume;
@@ -127,9 +125,7 @@ void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor
     // Block (j, i) is the transpose of block (i, j): compute the upper half only.
     for (int i = 0; i < 4; ++i)
       for (int j = i; j < 4; ++j) {
-        Eigen::Matrix3d B = (a * r.lame.lambda) * h.col(i) * h.col(j).transpose() +
-                            (a * r.lame.mu) * h.col(j) * h.col(i).transpose();
-        B.diagonal().array() += a * r.lame.mu * gg(i, j);
+        const Eigen::Matrix3d B = a * r.lame.coupling(h.col(i), h.col(j), gg(i, j));
         K.block(slots_[e][4 * i + j]) += B;
         if (j != i) K.block(slots_[e][4 * j + i]) += B.transpose();
       }

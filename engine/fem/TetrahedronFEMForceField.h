@@ -36,7 +36,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   Eigen::VectorXd vonMises(const Eigen::Matrix3Xd& x) const;
   // Uses the exact tangent (with the derivative of the rotation) instead of SOFA's R^T K0 R.
   bool exactTangent() const { return exact_; }
-  void setExactTangent(bool on) { exact_ = on; }
+  void setExactTangent(bool on) override { exact_ = on; }
 
  private:
   fem::Mat34 gather(const Eigen::Matrix3Xd& x, int e) const;

@@ -8,7 +8,6 @@
 #include "engine/MechanicalSystem.h"
 #include "core/Registry.h"
 #include "core/Scene.h"
-#include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "solvers/ode/OdeCommon.h"
 
@@ -46,8 +45,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     if ((idle_ = idleInRigidNode(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     if (exact_) {
-      for (ForceField* f : sys_->forceFields())
-        if (auto* fem = dynamic_cast<TetrahedronFEMForceField*>(f)) fem->setExactTangent(true);
+      for (ForceField* f : sys_->forceFields()) f->setExactTangent(true);
     } else {
       linear_ = findLinearSolver(*this);
     }
