@@ -18,6 +18,7 @@
 
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
+#include "core/Text.h"
 
 namespace viscera::motion {
 namespace {
@@ -56,23 +57,13 @@ std::string_view trim(std::string_view s) {
 // non-finite value) so that they get their own message.
 enum class Parsed { Number, NotANumber };
 
-Parsed parseNumber(std::string_view s, double& out) {
-  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);  // from_chars rejects '+'
-  if (s.empty()) return Parsed::NotANumber;
-  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out, std::chars_format::general);
-  if (end != s.data() + s.size()) return Parsed::NotANumber;
-  if (ec == std::errc::result_out_of_range) {
-    out = std::numeric_limits<double>::infinity();  // e.g. 1e999; reported as not finite
-    return Parsed::Number;
-  }
-  return ec == std::errc() ? Parsed::Number : Parsed::NotANumber;
-}
+Parsed parseField(std::string_view s, double& out) { return parseNumber(s, out) ? Parsed::Number : Parsed::NotANumber; }
 
 // The first content line is a header when its first field is not a number and does not even
 // start like one ("t", "time"); "0 0 0 ..." (wrong separator) is a row with a bad column count.
 bool isHeader(std::string_view first) {
   double ignored;
-  if (parseNumber(first, ignored) == Parsed::Number) return false;
+  if (parseField(first, ignored) == Parsed::Number) return false;
   const char c = first.empty() ? '\0' : first.front();
   return !(std::isdigit(static_cast<unsigned char>(c)) || c == '+' || c == '-' || c == '.');
 }
@@ -103,20 +94,14 @@ std::vector<Field> splitFields(std::string_view line) {
   throw Error(SourceLoc{name, line, col}, what);
 }
 
-std::string formatDouble(double v) {
-  char buffer[32];
-  auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);  // shortest text that reads back exactly
-  return std::string(buffer, ec == std::errc() ? end : buffer);
-}
-
 }  // namespace
 
 void Trajectory::add(double time, const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot) {
   if (!std::isfinite(time) || !pos.allFinite() || !rot.coeffs().allFinite())
     throw std::invalid_argument("Trajectory::add: non-finite time, position or orientation");
   if (!t.empty() && !(time > t.back()))
-    throw std::invalid_argument("Trajectory::add: time " + formatDouble(time) + " does not increase (previous " +
-                                formatDouble(t.back()) + ")");
+    throw std::invalid_argument("Trajectory::add: time " + formatNumber(time) + " does not increase (previous " +
+                                formatNumber(t.back()) + ")");
   if (rot.coeffs().stableNorm() == 0.0) throw std::invalid_argument("Trajectory::add: zero quaternion");
   t.push_back(time);
   p.push_back(pos);
@@ -189,7 +174,7 @@ Trajectory parseTrajectoryCsv(const std::string& text, const std::string& name) 
       fail(name, lineNo, 0, "expected 8 columns (t,x,y,z,qx,qy,qz,qw), got " + std::to_string(fields.size()));
     for (int c = 0; c < 8; ++c) {
       const std::string column = std::string("column '") + kColumns[c] + "'";
-      if (parseNumber(fields[c].text, values[c]) == Parsed::NotANumber)
+      if (parseField(fields[c].text, values[c]) == Parsed::NotANumber)
         fail(name, lineNo, fields[c].col, column + ": " + quoted(fields[c].text) + " is not a number");
       if (!std::isfinite(values[c]))
         fail(name, lineNo, fields[c].col, column + " is not finite (" + quoted(fields[c].text) + ")");
@@ -227,7 +212,7 @@ std::string formatTrajectoryCsv(const Trajectory& tr) {
     const double row[8] = {tr.t[i], tr.p[i].x(), tr.p[i].y(), tr.p[i].z(), tr.q[i].x(), tr.q[i].y(), tr.q[i].z(), tr.q[i].w()};
     for (int c = 0; c < 8; ++c) {
       if (c) out += ',';
-      out += formatDouble(row[c]);
+      out += formatNumber(row[c]);
     }
     out += '\n';
   }

@@ -13,6 +13,7 @@
 #include <string_view>
 
 #include "core/Error.h"
+#include "core/Text.h"
 
 namespace viscera::obs {
 namespace {
@@ -328,16 +329,6 @@ std::vector<std::string_view> splitCommas(std::string_view line) {
   return f;
 }
 
-// Whole-field number; false for anything else. NaN/inf parse as numbers (checked by the caller).
-bool parseNumber(std::string_view s, double& out) {
-  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);  // from_chars rejects '+'
-  if (s.empty()) return false;
-  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out, std::chars_format::general);
-  if (end != s.data() + s.size()) return false;
-  if (ec == std::errc::result_out_of_range) out = std::numeric_limits<double>::infinity();
-  else if (ec != std::errc()) return false;
-  return true;
-}
 
 }  // namespace
 

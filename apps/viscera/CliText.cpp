@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "core/Error.h"
+#include "core/Text.h"
 
 namespace viscera::cli {
 
@@ -39,10 +40,7 @@ std::vector<double> finiteNumbers(const std::string& text, const std::string& op
                 " in '" + text + "'");
   std::vector<double> v(count);
   for (size_t i = 0; i < count; ++i) {
-    char* end = nullptr;
-    errno = 0;
-    v[i] = std::strtod(w[i].c_str(), &end);
-    if (end != w[i].c_str() + w[i].size() || errno == ERANGE || !std::isfinite(v[i]))
+    if (!parseNumber(w[i], v[i]) || !std::isfinite(v[i]))
       throw Error(option + ": '" + w[i] + "' is not a finite number");
   }
   return v;

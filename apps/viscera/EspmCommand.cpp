@@ -25,6 +25,7 @@
 #include "robot/espm/Capture.h"
 #include "robot/kinematics/JointTrajectory.h"
 #include "robot/kinematics/PsmKinematics.h"
+#include "core/Text.h"
 
 namespace viscera {
 namespace {
@@ -53,7 +54,7 @@ Framing framingOption(const std::string& text) {
 }
 
 double lineRateOption(double rate) {
-  if (!(std::isfinite(rate) && rate > 0)) throw Error("--line-rate: " + io::formatReal(rate) + " is not a positive number of bit/s");
+  if (!(std::isfinite(rate) && rate > 0)) throw Error("--line-rate: " + formatNumber(rate) + " is not a positive number of bit/s");
   return rate;
 }
 
@@ -121,12 +122,12 @@ std::string packetCsv(const Capture& capture, const robot::JointTrajectory* join
   for (size_t i = 0; i < capture.samples.size(); ++i) {
     const CaptureSample& s = capture.samples[i];
     const Packet& p = s.packet;
-    out += io::formatReal(s.time) + ',' + std::to_string(s.offset);
+    out += formatNumber(s.time) + ',' + std::to_string(s.offset);
     for (const auto& e : p.encoders) out += ',' + std::to_string(e.count);
     for (const auto& e : p.encoders) out += e.overflow ? ",1" : ",0";
     if (joints) {
-      for (int j = 0; j < joints->dof(); ++j) out += ',' + io::formatReal(joints->joints(static_cast<int>(i))[j]);
-      for (int j = 0; j < joints->dof(); ++j) out += ',' + io::formatReal(jointVelocity(p, j, scale));
+      for (int j = 0; j < joints->dof(); ++j) out += ',' + formatNumber(joints->joints(static_cast<int>(i))[j]);
+      for (int j = 0; j < joints->dof(); ++j) out += ',' + formatNumber(jointVelocity(p, j, scale));
     }
     for (const auto& pot : p.pots) out += ',' + std::to_string(pot.position);
     for (const auto& pot : p.pots) out += pot.parityOk ? ",1" : ",0";
@@ -185,8 +186,8 @@ int runDecode(const DecodeOptions& o) {
 
   const DecoderStats& s = capture.stats;
   std::cout << o.capture << ": " << capture.samples.size() << " packets (" << framingName(capture.framing)
-            << " framing) over " << io::formatReal(capture.duration()) << " s, t = "
-            << io::formatReal(capture.samples.front().time) << " .. " << io::formatReal(capture.samples.back().time)
+            << " framing) over " << formatNumber(capture.duration()) << " s, t = "
+            << formatNumber(capture.samples.front().time) << " .. " << formatNumber(capture.samples.back().time)
             << " s\n"
             << "  " << s.bytesFed << " bytes: " << s.bytesInFrames << " in good frames, " << s.bytesSkipped
             << " skipped\n"
@@ -227,13 +228,13 @@ int runSynth(const SynthOptions& o) {
   for (const CaptureSample& s : samples)
     for (int j = 0; j < robot::kPsmDof; ++j)
       if (s.packet.encoders[j].overflow)
-        throw Error("--counts-per-unit: joint " + std::to_string(j + 1) + " at t = " + io::formatReal(s.time) +
+        throw Error("--counts-per-unit: joint " + std::to_string(j + 1) + " at t = " + formatNumber(s.time) +
                     " s of " + o.joints + " is beyond the 24-bit encoder counter (at most 8388607 counts)");
   writeCapture(o.out, samples, {options.framing, options.lineRate});
 
   const uint64_t bytes = samples.back().offset + packetFrameBytes(options.framing);
   std::cerr << "wrote " << samples.size() << " packets (" << framingName(options.framing) << " framing, "
-            << io::formatReal(options.rate) << " packets/s over " << io::formatReal(samples.back().time) << " s, "
+            << formatNumber(options.rate) << " packets/s over " << formatNumber(samples.back().time) << " s, "
             << bytes << " bytes) to " << o.out << "\n";
   return kExitOk;
 }

@@ -33,6 +33,7 @@
 #include "io/scene/CsvTable.h"
 #include "robot/encoder/Motion.h"
 #include "robot/encoder/VelocityBench.h"
+#include "core/Text.h"
 
 extern char** environ;
 
@@ -89,14 +90,14 @@ std::string formatCsv(const enc::BenchResult& r) {
   }
   text += '\n';
   for (size_t k = 0; k < r.time.size(); ++k) {
-    text += io::formatReal(r.time[k]);
+    text += formatNumber(r.time[k]);
     for (double v : {r.exact[k], r.truth[k]}) {
       text += ',';
-      text += io::formatReal(v);
+      text += formatNumber(v);
     }
     for (const auto& series : r.estimates) {
       text += ',';
-      text += io::formatReal(series[k]);
+      text += formatNumber(series[k]);
     }
     text += '\n';
   }
@@ -115,7 +116,7 @@ std::vector<RmsRow> rmsRows(const enc::BenchResult& r) {
   return rows;
 }
 
-std::string jsonNumber(double v) { return std::isfinite(v) ? io::formatReal(v) : "null"; }
+std::string jsonNumber(double v) { return std::isfinite(v) ? formatNumber(v) : "null"; }
 
 std::string encoderJson(const enc::EncoderSpec& s, size_t edges) {
   return "{\"lines\": " + jsonNumber(s.lines) + ", \"gear_ratio\": " + jsonNumber(s.gearRatio) + ", \"duty_a\": " + jsonNumber(s.dutyA) +
@@ -147,9 +148,9 @@ std::string formatSummary(const CompareOptions& o, const Motion& m, const enc::B
 std::string formatTable(const CompareOptions& o, const enc::BenchResult& r, const std::vector<RmsRow>& rows) {
   std::ostringstream t;
   t << std::fixed << std::setprecision(2);
-  const std::string truthName = io::formatReal(o.spec.truth.lines) + "-line";
-  t << "RMS error of the " << io::formatReal(o.spec.test.lines) << "-line estimates (deg/s), " << r.time.size() << " reads at "
-    << io::formatReal(o.spec.readRate) << " Hz, " << o.format << " registers\n";
+  const std::string truthName = formatNumber(o.spec.truth.lines) + "-line";
+  t << "RMS error of the " << formatNumber(o.spec.test.lines) << "-line estimates (deg/s), " << r.time.size() << " reads at "
+    << formatNumber(o.spec.readRate) << " Hz, " << o.format << " registers\n";
   t << std::left << std::setw(18) << "estimator" << std::right << std::setw(14) << ("vs " + truthName) << std::setw(12) << "vs exact"
     << "\n";
   for (const auto& row : rows) t << std::left << std::setw(18) << row.name << std::right << std::setw(14) << row.vsTruth << std::setw(12) << row.vsExact << "\n";
@@ -160,8 +161,8 @@ std::string formatTable(const CompareOptions& o, const enc::BenchResult& r, cons
 // The Fig. II-8 plot: three panels, each an estimate of the encoder under test (red) over the
 // reference (black). Runs from the output folder; the PNG name comes in as `outfile`.
 std::string formatGnuplot(const CompareOptions& o, const enc::BenchResult& r, const std::vector<RmsRow>& rows) {
-  const std::string truthTitle = io::formatReal(o.spec.truth.lines) + " lines";
-  const std::string testTitle = io::formatReal(o.spec.test.lines) + " lines";
+  const std::string truthTitle = formatNumber(o.spec.truth.lines) + " lines";
+  const std::string testTitle = formatNumber(o.spec.test.lines) + " lines";
   struct Panel {
     enc::BenchEstimator estimator;
     const char* title;
@@ -193,7 +194,7 @@ std::string formatGnuplot(const CompareOptions& o, const enc::BenchResult& r, co
     << "set grid\n"
     << "set key top right\n"
     << "set ylabel \"velocity (deg/s)\"\n"
-    << "set yrange [" << io::formatReal(yLow) << ":" << io::formatReal(yHigh) << "]\n"
+    << "set yrange [" << formatNumber(yLow) << ":" << formatNumber(yHigh) << "]\n"
     << "set multiplot layout 3,1\n";
   for (const Panel& p : panels) {
     size_t index = 0;
@@ -296,8 +297,8 @@ int compare(CompareOptions o) {
     plot(dir);
   }
   std::cerr << "wrote " << (dir / "velocity.csv").string() << ", summary.json" << (o.noPlot ? "" : ", velocity.gp and velocity.png")
-            << " (edges: " << result.testEdges << " on " << io::formatReal(o.spec.test.lines) << " lines, " << result.truthEdges
-            << " on " << io::formatReal(o.spec.truth.lines) << ")\n";
+            << " (edges: " << result.testEdges << " on " << formatNumber(o.spec.test.lines) << " lines, " << result.truthEdges
+            << " on " << formatNumber(o.spec.truth.lines) << ")\n";
   return kExitOk;
 }
 

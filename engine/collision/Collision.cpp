@@ -12,6 +12,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
+#include "core/Text.h"
 
 namespace viscera {
 
@@ -310,9 +311,7 @@ void CollisionResponse::init() {
     size_t eq = kv.find('=');
     std::string key = kv.substr(0, eq), val = eq == std::string::npos ? "" : kv.substr(eq + 1);
     if (key == "mu") {
-      char* end = nullptr;
-      mu = std::strtod(val.c_str(), &end);
-      if (val.empty() || *end != '\0' || !(mu >= 0) || !std::isfinite(mu))
+      if (!parseNumber(val, mu) || !(mu >= 0) || !std::isfinite(mu))
         throw error("responseParams", "mu must be a number >= 0, got '" + val + "'");
     } else if (key == "tol" || key == "tolerance") {
       // accepted: the constraint solver's tolerance applies

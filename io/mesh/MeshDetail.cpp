@@ -11,6 +11,7 @@
 #include <memory>
 
 #include "core/Error.h"
+#include "core/Text.h"
 
 namespace viscera::io {
 namespace detail {
@@ -62,17 +63,7 @@ void splitTokens(std::string_view line, std::vector<std::string_view>& out) {
   }
 }
 
-bool parseInt(std::string_view token, long long& out) {
-  if (token.size() > 1 && token[0] == '+' && token[1] != '-') token.remove_prefix(1);  // from_chars rejects '+'
-  auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), out);
-  return ec == std::errc() && end == token.data() + token.size() && !token.empty();
-}
-
-bool parseReal(std::string_view token, double& out) {
-  if (token.size() > 1 && token[0] == '+' && token[1] != '-') token.remove_prefix(1);
-  auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), out, std::chars_format::general);
-  return ec == std::errc() && end == token.data() + token.size() && !token.empty() && std::isfinite(out);
-}
+bool parseReal(std::string_view token, double& out) { return parseNumber(token, out) && std::isfinite(out); }
 
 bool LineCursor::next() {
   if (pos_ >= text_.size()) return false;
@@ -103,7 +94,7 @@ long long LineCursor::intAt(size_t i, const std::string& what) {
   const auto& t = tokens();
   if (i >= t.size()) fail("missing " + what);
   long long v;
-  if (!parseInt(t[i], v)) fail("expected an integer for " + what + ", found " + quoted(t[i]));
+  if (!parseInteger(t[i], v)) fail("expected an integer for " + what + ", found " + quoted(t[i]));
   return v;
 }
 
@@ -155,7 +146,7 @@ std::string_view TokenCursor::expect(const std::string& what) {
 long long TokenCursor::expectInt(const std::string& what) {
   std::string_view token = expect(what);
   long long v;
-  if (!parseInt(token, v)) fail("expected an integer for " + what + ", found " + quoted(token));
+  if (!parseInteger(token, v)) fail("expected an integer for " + what + ", found " + quoted(token));
   return v;
 }
 

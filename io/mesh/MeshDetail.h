@@ -27,7 +27,6 @@ bool startsWithIgnoreCase(std::string_view s, std::string_view prefix);
 void splitTokens(std::string_view line, std::vector<std::string_view>& out);
 
 // Whole-token parses: "12abc", "" or out-of-range values are rejected (false).
-bool parseInt(std::string_view token, long long& out);
 bool parseReal(std::string_view token, double& out);  // finite values only
 
 // Walks a text line by line, keeping the 1-based number of the current line.

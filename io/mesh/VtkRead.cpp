@@ -7,6 +7,7 @@
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/mesh/MeshDetail.h"
+#include "core/Text.h"
 
 namespace viscera::io {
 namespace {
@@ -88,7 +89,7 @@ class VtkLegacyReader {
   long long intValue(const std::string& section, long long declared, long long done, const char* noun) {
     const std::string_view token = value(section, declared, done, noun);
     long long v;
-    if (!detail::parseInt(token, v)) in_.fail("expected an integer in " + section + ", found " + quoted(token));
+    if (!parseInteger(token, v)) in_.fail("expected an integer in " + section + ", found " + quoted(token));
     return v;
   }
 

@@ -16,6 +16,7 @@
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/mesh/MeshDetail.h"
+#include "core/Text.h"
 
 namespace viscera::io {
 namespace {
@@ -292,7 +293,7 @@ class VtuReader {
     const std::string* v = e.attribute(key);
     if (!v) fail(e.line, "<" + e.name + "> needs a " + key + " attribute");
     long long n;
-    if (!detail::parseInt(detail::trim(*v), n) || n < 0 || n > INT_MAX)
+    if (!parseInteger(detail::trim(*v), n) || n < 0 || n > INT_MAX)
       fail(e.line, std::string(key) + " must be a count between 0 and " + std::to_string(INT_MAX) + ", found " + quoted(*v));
     return n;
   }
@@ -343,7 +344,7 @@ class VtuReader {
       const std::string_view token(s.data() + start, i - start);
       if constexpr (std::is_integral_v<T>) {
         long long v;
-        if (!detail::parseInt(token, v)) fail(line, "expected an integer in the " + what + " DataArray, found " + quoted(token));
+        if (!parseInteger(token, v)) fail(line, "expected an integer in the " + what + " DataArray, found " + quoted(token));
         out.push_back(v);
       } else {
         double v;

@@ -16,18 +16,12 @@
 #include "core/Files.h"
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
+#include "core/Text.h"
 
 namespace viscera::io {
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& what) { throw Error(SourceLoc{path, 0, 0}, what); }
-
-// Shortest text that reads back as the same double.
-std::string formatDouble(double v) {
-  char buffer[32];
-  auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
-  return std::string(buffer, ec == std::errc() ? end : buffer);
-}
 
 std::string escapeAttribute(const std::string& s) {
   std::string out;
@@ -296,7 +290,7 @@ void writePvd(const std::string& path, const std::vector<std::pair<double, std::
       "  <Collection>\n";
   for (const auto& [time, file] : entries) {
     if (!std::isfinite(time)) fail(path, "cannot write: the time of '" + file + "' is not finite");
-    out += "    <DataSet timestep=\"" + formatDouble(time) + "\" group=\"\" part=\"0\" file=\"" + escapeAttribute(file) + "\"/>\n";
+    out += "    <DataSet timestep=\"" + formatNumber(time) + "\" group=\"\" part=\"0\" file=\"" + escapeAttribute(file) + "\"/>\n";
   }
   out +=
       "  </Collection>\n"

@@ -17,6 +17,7 @@
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
+#include "core/Text.h"
 
 namespace viscera::cloud {
 namespace {
@@ -35,20 +36,8 @@ std::string trim(const std::string& s) {
 }
 
 // A whole-string finite number, or false.
-bool parseNumber(const std::string& text, double& value) {
-  if (text.empty()) return false;
-  char* end = nullptr;
-  errno = 0;
-  value = std::strtod(text.c_str(), &end);
-  return end == text.c_str() + text.size() && errno != ERANGE && std::isfinite(value);
-}
+bool parseFinite(const std::string& text, double& value) { return parseNumber(text, value) && std::isfinite(value); }
 
-// The shortest text that reads back to the same double.
-std::string formatTime(double t) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, t);
-  return std::string(buf, r.ptr);
-}
 
 // The last number in a file name without its extension: `frame_12.5` -> "12.5",
 // `cloud_000123` -> "000123", `scan2_0007` -> "0007". A '.' belongs to the number only between
@@ -90,11 +79,11 @@ std::vector<CloudFrame> readIndex(const std::string& indexPath) {
     if (comma == std::string::npos) fail("expected 'time,file', got '" + text + "'");
     const std::string timeText = trim(text.substr(0, comma)), file = trim(text.substr(comma + 1));
     double time = 0;
-    if (!parseNumber(timeText, time)) fail("time '" + timeText + "' is not a finite number");
+    if (!parseFinite(timeText, time)) fail("time '" + timeText + "' is not a finite number");
     if (file.empty()) fail("no file name after the time");
     if (!isCloudFileName(file)) fail("'" + file + "' is not a .pcd or .ply file");
     if (!frames.empty() && !(time > frames.back().time))
-      fail("time " + timeText + " is not after the time " + formatTime(frames.back().time) + " of line " +
+      fail("time " + timeText + " is not after the time " + formatNumber(frames.back().time) + " of line " +
            std::to_string(previousLine) + " (times must increase strictly)");
     const fs::path path = fs::path(file).is_absolute() ? fs::path(file) : folder / file;
     std::error_code ec;
@@ -120,7 +109,7 @@ std::vector<CloudFrame> framesFromNames(const std::string& folder, double nameTi
   for (const auto& file : files) {
     const std::string number = lastNumber(fs::path(file).stem().string());
     double value = 0;
-    if (number.empty() || !parseNumber(number, value))
+    if (number.empty() || !parseFinite(number, value))
       throw Error(SourceLoc{file}, "no number in the file name to take the frame time from (name the files like "
                                    "frame_0.033.pcd, or add an index.csv with time,file columns)");
     frames.push_back({value * nameTimeScale, file});
@@ -130,7 +119,7 @@ std::vector<CloudFrame> framesFromNames(const std::string& folder, double nameTi
     if (frames[i].time == frames[i - 1].time)
       throw Error(SourceLoc{folder}, "frames " + fs::path(frames[i - 1].path).filename().string() + " and " +
                                          fs::path(frames[i].path).filename().string() + " have the same time " +
-                                         formatTime(frames[i].time) + " s (from their names)");
+                                         formatNumber(frames[i].time) + " s (from their names)");
   return frames;
 }
 
@@ -143,7 +132,7 @@ bool isCloudFileName(const std::string& path) {
 
 std::vector<CloudFrame> listCloudSequence(const std::string& where, double nameTimeScale) {
   if (!(nameTimeScale > 0) || !std::isfinite(nameTimeScale))
-    throw Error(SourceLoc{where}, "the time scale for file names must be a positive number, got " + formatTime(nameTimeScale));
+    throw Error(SourceLoc{where}, "the time scale for file names must be a positive number, got " + formatNumber(nameTimeScale));
   std::error_code ec;
   if (!fs::exists(where, ec)) throw Error(SourceLoc{where}, "no such folder or index file");
   if (fs::is_directory(where, ec)) {
@@ -169,10 +158,10 @@ CloudSequenceWriter::CloudSequenceWriter(std::string folder, std::string prefix,
 }
 
 std::string CloudSequenceWriter::add(const PointCloud& cloud, double time) {
-  if (!std::isfinite(time)) throw Error(SourceLoc{folder_}, "frame time " + formatTime(time) + " is not finite");
+  if (!std::isfinite(time)) throw Error(SourceLoc{folder_}, "frame time " + formatNumber(time) + " is not finite");
   if (!frames_.empty() && !(time > frames_.back().time))
-    throw Error(SourceLoc{folder_}, "frame time " + formatTime(time) + " is not after the previous frame's " +
-                                        formatTime(frames_.back().time) + " (times must increase strictly)");
+    throw Error(SourceLoc{folder_}, "frame time " + formatNumber(time) + " is not after the previous frame's " +
+                                        formatNumber(frames_.back().time) + " (times must increase strictly)");
   char number[16];
   std::snprintf(number, sizeof number, "%06zu", frames_.size());
   const std::string name = prefix_ + "_" + number + "." + extension_;
@@ -181,7 +170,7 @@ std::string CloudSequenceWriter::add(const PointCloud& cloud, double time) {
   frames_.push_back({time, path});
 
   std::string index = "time,file\n";
-  for (const auto& f : frames_) index += formatTime(f.time) + "," + fs::path(f.path).filename().string() + "\n";
+  for (const auto& f : frames_) index += formatNumber(f.time) + "," + fs::path(f.path).filename().string() + "\n";
   writeFileAtomic((fs::path(folder_) / "index.csv").string(), index);
   return path;
 }

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "core/Error.h"
+#include "core/Text.h"
 
 namespace viscera::io {
 namespace {
@@ -22,20 +23,6 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && isBlank(s.front())) s.remove_prefix(1);
   while (!s.empty() && isBlank(s.back())) s.remove_suffix(1);
   return s;
-}
-
-// Whole-field parse; out-of-range values (1e999) come back as infinite so that they are reported
-// as not finite rather than as not numbers.
-bool parseNumber(std::string_view s, double& out) {
-  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);  // from_chars rejects '+'
-  if (s.empty()) return false;
-  auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out, std::chars_format::general);
-  if (end != s.data() + s.size()) return false;
-  if (ec == std::errc::result_out_of_range) {
-    out = std::numeric_limits<double>::infinity();
-    return true;
-  }
-  return ec == std::errc();
 }
 
 bool looksNumeric(std::string_view first) {
@@ -127,12 +114,6 @@ NumericCsv readNumericCsv(const std::string& path, const std::vector<std::string
   while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, got);
   if (std::ferror(file.get())) throw Error(SourceLoc{path}, std::string("cannot read: ") + std::strerror(errno));
   return parseNumericCsv(text, path, columnNames);
-}
-
-std::string formatReal(double v) {
-  char buffer[32];
-  auto [end, ec] = std::to_chars(buffer, buffer + sizeof buffer, v);
-  return std::string(buffer, ec == std::errc() ? end : buffer);
 }
 
 }  // namespace viscera::io

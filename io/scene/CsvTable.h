@@ -29,7 +29,5 @@ NumericCsv parseNumericCsv(const std::string& text, const std::string& source,
 // Reads the file at `path` (an Error naming it when it cannot be read) and parses it.
 NumericCsv readNumericCsv(const std::string& path, const std::vector<std::string>& columnNames);
 
-// Shortest decimal text that reads back to exactly `v` (for writing tables).
-std::string formatReal(double v);
 
 }  // namespace viscera::io

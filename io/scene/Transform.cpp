@@ -9,6 +9,7 @@
 
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
+#include "core/Text.h"
 
 namespace viscera {
 
@@ -25,9 +26,8 @@ RigidTransform parseTransform(const std::string& text, const std::string& source
     std::istringstream ls(line);
     std::string tok;
     while (ls >> tok) {
-      char* end = nullptr;
-      const double d = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0')
+      double d = 0;
+      if (!parseNumber(tok, d))
         throw Error(SourceLoc{source, lineNo, 0}, "transform: '" + tok + "' is not a number");
       if (!std::isfinite(d)) throw Error(SourceLoc{source, lineNo, 0}, "transform: '" + tok + "' is not finite");
       v.push_back(d);
@@ -69,12 +69,10 @@ std::string formatTransform(const RigidTransform& T, const std::string& comment)
   std::string line;
   while (std::getline(cs, line)) out += "# " + line + "\n";
   const Eigen::Matrix4d M = T.matrix();
-  char buf[64];
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) {
-      std::snprintf(buf, sizeof buf, "%.17g", r == 3 ? (c == 3 ? 1.0 : 0.0) : M(r, c));
       if (c) out += ' ';
-      out += buf;
+      out += formatNumber(r == 3 ? (c == 3 ? 1.0 : 0.0) : M(r, c));
     }
     out += "\n";
   }

@@ -8,6 +8,7 @@
 
 #include "core/Error.h"
 #include "io/scene/CsvTable.h"
+#include "core/Text.h"
 
 namespace viscera::robot::encoder {
 namespace {
@@ -96,8 +97,8 @@ MotionFile readMotionCsv(const std::string& path) {
     t[r] = table.at(r, 0);
     theta[r] = table.at(r, 1);
     if (r > 0 && !(t[r] > t[r - 1]))
-      throw Error(SourceLoc{path, table.lines[r], 1}, "t must increase (" + io::formatReal(t[r]) + " after " +
-                                                          io::formatReal(t[r - 1]) + ")");
+      throw Error(SourceLoc{path, table.lines[r], 1}, "t must increase (" + formatNumber(t[r]) + " after " +
+                                                          formatNumber(t[r - 1]) + ")");
   }
   MotionFile out;
   out.start = t.front();

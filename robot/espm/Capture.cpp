@@ -16,6 +16,7 @@
 #include "robot/encoder/EncoderFpga.h"
 #include "robot/encoder/Quadrature.h"
 #include "robot/encoder/Registers.h"
+#include "core/Text.h"
 
 namespace viscera::robot::espm {
 namespace {
@@ -25,7 +26,7 @@ constexpr size_t kReadPiece = size_t{1} << 20;
 
 void requireLineRate(double lineRate, const std::string& source) {
   if (!(std::isfinite(lineRate) && lineRate > 0))
-    throw Error(SourceLoc{source}, "line rate " + io::formatReal(lineRate) + " bit/s is not a positive number");
+    throw Error(SourceLoc{source}, "line rate " + formatNumber(lineRate) + " bit/s is not a positive number");
 }
 
 // Collects the information packets a decoder emits.
@@ -110,10 +111,10 @@ std::vector<uint8_t> encodeCapture(std::span<const CaptureSample> samples, const
     const double t = samples[i].time;
     const double offset = std::round(t * bytesPerSecond);
     if (!(std::isfinite(offset) && offset >= 0 && offset < 1e15))
-      throw Error("packet " + std::to_string(i) + ": time " + io::formatReal(t) + " s is not a time in a capture");
+      throw Error("packet " + std::to_string(i) + ": time " + formatNumber(t) + " s is not a time in a capture");
     const size_t start = static_cast<size_t>(offset);
     if (start < out.size())
-      throw Error("packet " + std::to_string(i) + " at t = " + io::formatReal(t) + " s (byte " + std::to_string(start) +
+      throw Error("packet " + std::to_string(i) + " at t = " + formatNumber(t) + " s (byte " + std::to_string(start) +
                   ") starts before packet " + std::to_string(i - 1) + " ends (byte " + std::to_string(out.size()) +
                   "): a packet takes " + std::to_string(frameBytes) + " bytes on the line");
     out.resize(start, 0);
@@ -135,10 +136,10 @@ void writeCapture(const std::string& path, std::span<const CaptureSample> sample
 void JointScale::validate() const {
   for (int j = 0; j < kJointChannels; ++j) {
     if (!(std::isfinite(countsPerUnit[j]) && countsPerUnit[j] != 0))
-      throw Error("encoder " + std::to_string(j + 1) + ": counts per unit " + io::formatReal(countsPerUnit[j]) +
+      throw Error("encoder " + std::to_string(j + 1) + ": counts per unit " + formatNumber(countsPerUnit[j]) +
                   " is not a non-zero number");
     if (!std::isfinite(offset[j]))
-      throw Error("encoder " + std::to_string(j + 1) + ": offset " + io::formatReal(offset[j]) + " is not a number");
+      throw Error("encoder " + std::to_string(j + 1) + ": offset " + formatNumber(offset[j]) + " is not a number");
   }
 }
 
@@ -146,7 +147,7 @@ EncoderPosition JointScale::toEncoder(int channel, double value) const {
   const double counts = std::round((value - offset[channel]) * countsPerUnit[channel]);
   if (!std::isfinite(counts))
     throw std::invalid_argument("JointScale::toEncoder: encoder " + std::to_string(channel + 1) + " value " +
-                                io::formatReal(value) + " gives no count");
+                                formatNumber(value) + " gives no count");
   if (counts >= kEncoderCountMin && counts <= kEncoderCountMax) return {static_cast<int32_t>(counts), false};
   // Outside the 24-bit counter: it wraps and the overflow bit is set.
   const double wrapped = counts - kCounterModulus * std::floor((counts + kEncoderMidrange) / kCounterModulus);
@@ -163,7 +164,7 @@ JointTrajectory jointsFromCapture(const Capture& capture, const JointScale& scal
       const EncoderPosition& e = s.packet.encoders[j];
       if (e.overflow)
         throw Error(SourceLoc{capture.source}, "packet at byte offset " + std::to_string(s.offset) + " (t = " +
-                                                   io::formatReal(s.time) + " s): encoder " + std::to_string(j + 1) +
+                                                   formatNumber(s.time) + " s): encoder " + std::to_string(j + 1) +
                                                    " has its overflow bit set, so its count is no joint position");
       q[j] = scale.toJoint(j, e.count);
     }
@@ -239,12 +240,12 @@ std::vector<CaptureSample> synthesizeCapture(const JointTrajectory& joints, cons
   if (joints.empty()) throw Error("synthesizeCapture: the joint trajectory has no samples");
   requireLineRate(o.lineRate, "synthesizeCapture");
   o.scale.validate();
-  if (!(std::isfinite(o.rate) && o.rate > 0)) throw Error("rate: " + io::formatReal(o.rate) + " packets/s is not a positive number");
+  if (!(std::isfinite(o.rate) && o.rate > 0)) throw Error("rate: " + formatNumber(o.rate) + " packets/s is not a positive number");
   const double bytesPerPacket = o.lineRate / (8 * o.rate);
   const size_t frameBytes = packetFrameBytes(o.framing);
   if (bytesPerPacket < static_cast<double>(frameBytes)) {
     std::ostringstream m;
-    m << "rate: " << io::formatReal(o.rate) << " packets/s do not fit on a " << io::formatReal(o.lineRate / 1e6)
+    m << "rate: " << formatNumber(o.rate) << " packets/s do not fit on a " << formatNumber(o.lineRate / 1e6)
       << " Mbit/s line: a " << framingName(o.framing) << "-framed packet takes " << frameBytes << " bytes, so at most "
       << static_cast<long long>(std::floor(o.lineRate / (8.0 * static_cast<double>(frameBytes)))) << " packets/s";
     throw Error(m.str());

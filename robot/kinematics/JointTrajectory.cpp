@@ -8,6 +8,7 @@
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/CsvTable.h"
+#include "core/Text.h"
 
 namespace viscera::robot {
 
@@ -17,8 +18,8 @@ void JointTrajectory::add(double time, const Eigen::Ref<const Eigen::VectorXd>& 
                                 std::to_string(dof_) + "-joint trajectory");
   if (!std::isfinite(time) || !q.allFinite()) throw std::invalid_argument("JointTrajectory::add: non-finite time or joint value");
   if (!t_.empty() && !(time > t_.back()))
-    throw std::invalid_argument("JointTrajectory::add: time " + io::formatReal(time) + " does not increase (previous " +
-                                io::formatReal(t_.back()) + ")");
+    throw std::invalid_argument("JointTrajectory::add: time " + formatNumber(time) + " does not increase (previous " +
+                                formatNumber(t_.back()) + ")");
   t_.push_back(time);
   q_.insert(q_.end(), q.data(), q.data() + dof_);
   if (sourceLine > 0 || !lines_.empty()) {
@@ -65,7 +66,7 @@ JointTrajectory fromTable(const io::NumericCsv& table, int dof) {
     const double* row = table.row(r);
     if (r > 0 && !(row[0] > tr.end()))
       throw Error(SourceLoc{table.source, table.lines[r]},
-                  "time " + io::formatReal(row[0]) + " does not increase (previous " + io::formatReal(tr.end()) +
+                  "time " + formatNumber(row[0]) + " does not increase (previous " + formatNumber(tr.end()) +
                       " at line " + std::to_string(table.lines[r - 1]) + ")");
     tr.add(row[0], Eigen::Map<const Eigen::VectorXd>(row + 1, dof), table.lines[r]);
   }
@@ -89,10 +90,10 @@ std::string formatJointCsv(const JointTrajectory& trajectory) {
   }
   out += '\n';
   for (int i = 0; i < trajectory.size(); ++i) {
-    out += io::formatReal(trajectory.time(i));
+    out += formatNumber(trajectory.time(i));
     for (int j = 0; j < trajectory.dof(); ++j) {
       out += ',';
-      out += io::formatReal(trajectory.joints(i)[j]);
+      out += formatNumber(trajectory.joints(i)[j]);
     }
     out += '\n';
   }

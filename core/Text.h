@@ -1,0 +1,20 @@
+// Numbers as text, read and written the same way everywhere (scenes, tables, meshes, clouds,
+// command lines), so that what one part writes another reads back exactly.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+namespace viscera {
+
+// The whole of `s` as a number (no blanks around it; a leading '+' is accepted). Magnitudes out
+// of double range read as +-infinity (1e999) or as their nearest value (1e-999: 0), so callers
+// report overflow as "not finite" rather than "not a number". "nan" and "inf" parse: callers that
+// need finite values check.
+bool parseNumber(std::string_view s, double& out);
+// The whole of `s` as an integer (a leading '+' accepted); false if it does not fit.
+bool parseInteger(std::string_view s, long long& out);
+// The shortest text that reads back as exactly `v` ("0.1", "1e-07", "0.3333333333333333").
+std::string formatNumber(double v);
+
+}  // namespace viscera
