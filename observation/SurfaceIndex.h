@@ -1,5 +1,5 @@
-// Exact closest points on a triangle surface: a bounding-volume hierarchy over the triangles,
-// built once and refitted when the surface deforms. Used by the cloud -> surface distance, ICP
+// Exact closest points on a triangle surface: the bounding-volume hierarchy of contact
+// (geom::AabbTree) over the triangles, built once and refitted when the surface deforms. Used by the cloud -> surface distance, ICP
 // registration and anything else that asks "where on the tissue surface is this point nearest?".
 #pragma once
 
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
+#include "engine/collision/Geometry.h"
 #include "io/mesh/Mesh.h"
 
 namespace viscera::obs {
@@ -30,7 +31,7 @@ class SurfaceIndex {
 
   SurfaceIndex() = default;
   SurfaceIndex(const Eigen::Matrix3Xd& points, const TriangleList& triangles) { build(points, triangles); }
-  // Builds the hierarchy (median splits on the longest axis, up to 4 triangles a leaf).
+  // Builds the hierarchy over the triangles' boxes.
   void build(const Eigen::Matrix3Xd& points, const TriangleList& triangles);
   // New positions for the same points and triangles: refits the boxes in O(n).
   void update(const Eigen::Matrix3Xd& points);
@@ -47,17 +48,10 @@ class SurfaceIndex {
   Eigen::Vector3d normal(int t) const;
 
  private:
-  struct NodeData {
-    Eigen::Vector3d lo, hi;
-    int left = -1, right = -1;  // children; -1 for a leaf
-    int first = 0, count = 0;   // leaf: range in order_
-  };
-  int buildRange(std::vector<Eigen::Vector3d>& centres, int first, int count);
-  void refitNode(int n);
+  std::vector<geom::AabbTree::Box> boxes() const;  // one per triangle at the current positions
   Eigen::Matrix3Xd points_;
   TriangleList tris_;
-  std::vector<NodeData> nodes_;
-  std::vector<int> order_;
+  geom::AabbTree tree_;
 };
 
 }  // namespace viscera::obs

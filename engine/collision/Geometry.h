@@ -1,5 +1,5 @@
-// Small geometric kernels for contact: closest point on a triangle and an axis-aligned bounding
-// volume hierarchy refitted every step.
+// Small geometric kernels for contact and observation: closest point on a triangle and the one
+// axis-aligned bounding volume hierarchy (refitted every step; queried with a box, or nearest first).
 #pragma once
 
 #include <Eigen/Core>
@@ -31,6 +31,34 @@ class AabbTree {
   void refit(const std::vector<Box>& boxes);
   // Calls `hit(i)` for each primitive whose box intersects `query`.
   void query(const Box& query, const std::function<void(int)>& hit) const;
+  // Nearest first from p: calls `test(i)` for the primitives in leaves whose boxes lie within
+  // sqrt(bound2) of p, nearer subtrees first. `test` may lower bound2 (it found something closer),
+  // which prunes the rest; bound2 is read, never written, here.
+  template <class Test>
+  void nearest(const Eigen::Vector3d& p, const double& bound2, Test&& test) const {
+    if (nodes_.empty()) return;
+    auto dist2 = [&](const Box& b) { return (b.min() - p).cwiseMax(p - b.max()).cwiseMax(0.0).squaredNorm(); };
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const NodeData& n = nodes_[stack[--top]];
+      if (dist2(n.box) > bound2) continue;
+      if (n.left < 0) {
+        for (int k = n.first; k < n.first + n.count; ++k) test(prims_[k]);
+        continue;
+      }
+      const double dl = dist2(nodes_[n.left].box), dr = dist2(nodes_[n.right].box);
+      // The nearer child last, so that it is searched first.
+      if (dl < dr) {
+        if (dr <= bound2) stack[top++] = n.right;
+        if (dl <= bound2) stack[top++] = n.left;
+      } else {
+        if (dl <= bound2) stack[top++] = n.left;
+        if (dr <= bound2) stack[top++] = n.right;
+      }
+    }
+  }
   int size() const { return static_cast<int>(prims_.size()); }
 
  private:
