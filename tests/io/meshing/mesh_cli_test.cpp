@@ -8,7 +8,7 @@
 
 #include "io/mesh/Mesh.h"
 #include "tests/apps/cli_helpers.h"
-#include "tests/meshing/shapes.h"
+#include "tests/io/meshing/shapes.h"
 
 using namespace viscera_test;
 namespace io = viscera::io;

@@ -13,7 +13,7 @@
 #include "robot/espm/Crc16.h"
 #include "robot/espm/Framing.h"
 #include "robot/espm/StreamDecoder.h"
-#include "tests/espm/espm_test_support.h"
+#include "tests/robot/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 

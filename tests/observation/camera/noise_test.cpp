@@ -9,7 +9,7 @@
 #include <limits>
 #include <set>
 
-#include "tests/camera/camera_helpers.h"
+#include "tests/observation/camera/camera_helpers.h"
 
 using namespace viscera;
 using namespace viscera::obs;

@@ -18,7 +18,7 @@
 
 #include "core/Error.h"
 #include "io/mesh/Mesh.h"
-#include "tests/meshing/shapes.h"
+#include "tests/io/meshing/shapes.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera_test;

@@ -11,7 +11,7 @@
 #include "tests/support/ErrorOf.h"
 #include "core/Error.h"
 #include "observation/Registration.h"
-#include "tests/registration/phantom.h"
+#include "tests/observation/registration/phantom.h"
 
 using namespace registration_test;
 using viscera::RigidTransform;

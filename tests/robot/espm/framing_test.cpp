@@ -9,7 +9,7 @@
 
 #include "robot/espm/Framing.h"
 #include "robot/espm/StreamDecoder.h"
-#include "tests/espm/espm_test_support.h"
+#include "tests/robot/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 

@@ -43,7 +43,7 @@
 
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
-#include "tests/contact/contact_helpers.h"
+#include "tests/engine/collision/contact_helpers.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera;

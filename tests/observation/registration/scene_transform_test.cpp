@@ -16,7 +16,7 @@
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "io/scene/Transform.h"
-#include "tests/registration/phantom.h"
+#include "tests/observation/registration/phantom.h"
 #include "tests/support/TempDir.h"
 
 using namespace registration_test;

@@ -13,7 +13,7 @@
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
-#include "tests/contact/contact_helpers.h"
+#include "tests/engine/collision/contact_helpers.h"
 
 using namespace viscera;
 using namespace viscera::contact_test;

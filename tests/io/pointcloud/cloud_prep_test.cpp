@@ -12,7 +12,7 @@
 #include "tests/support/ErrorOf.h"
 #include "core/Error.h"
 #include "io/pointcloud/CloudPrep.h"
-#include "tests/pointcloud/synthetic_capture.h"
+#include "tests/io/pointcloud/synthetic_capture.h"
 
 using namespace viscera;
 using namespace viscera::cloud;

@@ -11,7 +11,7 @@
 #include "robot/encoder/Registers.h"
 #include "robot/encoder/VelocityEstimators.h"
 #include "robot/espm/Capture.h"
-#include "tests/espm/espm_test_support.h"
+#include "tests/robot/espm/espm_test_support.h"
 #include "tests/support/ErrorOf.h"
 #include "tests/support/TempDir.h"
 

@@ -11,7 +11,7 @@
 #include "tests/support/ErrorOf.h"
 #include "core/Error.h"
 #include "io/surface/SurfaceMesh.h"
-#include "tests/meshing/shapes.h"
+#include "tests/io/meshing/shapes.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera_test;

@@ -19,7 +19,7 @@
 #include "io/mesh/Mesh.h"
 #include "io/meshing/Tetrahedralize.h"
 #include "io/scene/SceneReader.h"
-#include "tests/meshing/shapes.h"
+#include "tests/io/meshing/shapes.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera;

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "tests/camera/camera_helpers.h"
+#include "tests/observation/camera/camera_helpers.h"
 
 using namespace viscera;
 using namespace viscera::obs;

@@ -8,7 +8,7 @@
 
 #include "robot/espm/Crc16.h"
 #include "robot/espm/Packet.h"
-#include "tests/espm/espm_test_support.h"
+#include "tests/robot/espm/espm_test_support.h"
 
 using namespace viscera::robot::espm;
 

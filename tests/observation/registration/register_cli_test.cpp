@@ -13,7 +13,7 @@
 #include "io/mesh/Mesh.h"
 #include "io/scene/Transform.h"
 #include "tests/apps/cli_helpers.h"
-#include "tests/registration/phantom.h"
+#include "tests/observation/registration/phantom.h"
 
 using namespace viscera_test;
 using namespace registration_test;

@@ -9,7 +9,7 @@
 
 #include "io/pointcloud/CloudIo.h"
 #include "tests/apps/cli_helpers.h"
-#include "tests/pointcloud/synthetic_capture.h"
+#include "tests/io/pointcloud/synthetic_capture.h"
 
 using namespace viscera_test;
 using namespace viscera::cloud;
