@@ -1,5 +1,6 @@
 #include "engine/collision/Collision.h"
 #include "io/mesh/Mesh.h"
+#include "io/scene/InputCache.h"
 
 #include <algorithm>
 #include <cmath>
@@ -39,6 +40,47 @@ struct SurfaceCollisionModel::Bvh {
   std::vector<geom::AabbTree::Box> boxes;
 };
 
+namespace {
+
+// The boundary surface of tetrahedra T at rest positions X, with its edges and adjacency.
+struct SurfaceTopology {
+  std::vector<std::array<int, 3>> tris;
+  std::vector<int> verts;
+  std::vector<std::array<int, 2>> edges;
+  std::vector<std::array<int, 3>> triEdges;
+  std::vector<std::vector<int>> edgeTris, vertexNeighbours;
+};
+
+SurfaceTopology surfaceTopology(const TetList& T, const Eigen::Matrix3Xd& X) {
+  SurfaceTopology s;
+  // Boundary faces: those that belong to one tetrahedron, oriented away from its fourth node.
+  const io::TriangleList boundary = io::boundaryTriangles(T, X);
+  for (Eigen::Index t = 0; t < boundary.cols(); ++t) s.tris.push_back({boundary(0, t), boundary(1, t), boundary(2, t)});
+  std::map<std::pair<int, int>, int> edgeId;
+  s.triEdges.resize(s.tris.size());
+  s.vertexNeighbours.assign(X.cols(), {});
+  for (size_t t = 0; t < s.tris.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      int a = s.tris[t][k], b = s.tris[t][(k + 1) % 3];
+      auto key = std::minmax(a, b);
+      auto [it, fresh] = edgeId.try_emplace({key.first, key.second}, static_cast<int>(s.edges.size()));
+      if (fresh) {
+        s.edges.push_back({key.first, key.second});
+        s.edgeTris.emplace_back();
+        s.vertexNeighbours[a].push_back(b);
+        s.vertexNeighbours[b].push_back(a);
+      }
+      s.edgeTris[it->second].push_back(static_cast<int>(t));
+      s.triEdges[t][k] = it->second;
+    }
+  }
+  for (int i = 0; i < X.cols(); ++i)
+    if (!s.vertexNeighbours[i].empty()) s.verts.push_back(i);
+  return s;
+}
+
+}  // namespace
+
 void SurfaceCollisionModel::init() {
   const std::string& t = typeName();
   kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
@@ -53,30 +95,16 @@ void SurfaceCollisionModel::init() {
       if (T(k, e) < 0 || T(k, e) >= X.cols())
         throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(T(k, e)) +
                     " but the MechanicalObject has " + std::to_string(X.cols()) + " nodes");
-  // Boundary faces: those that belong to one tetrahedron, oriented away from its fourth node.
-  const io::TriangleList boundary = io::boundaryTriangles(T, X);
-  for (Eigen::Index t = 0; t < boundary.cols(); ++t) tris_.push_back({boundary(0, t), boundary(1, t), boundary(2, t)});
-  if (tris_.empty()) throw error("the topology has no boundary triangles");
-  std::map<std::pair<int, int>, int> edgeId;
-  triEdges_.resize(tris_.size());
-  vertexNeighbours_.assign(X.cols(), {});
-  for (size_t t = 0; t < tris_.size(); ++t) {
-    for (int k = 0; k < 3; ++k) {
-      int a = tris_[t][k], b = tris_[t][(k + 1) % 3];
-      auto key = std::minmax(a, b);
-      auto [it, fresh] = edgeId.try_emplace({key.first, key.second}, static_cast<int>(edges_.size()));
-      if (fresh) {
-        edges_.push_back({key.first, key.second});
-        edgeTris_.emplace_back();
-        vertexNeighbours_[a].push_back(b);
-        vertexNeighbours_[b].push_back(a);
-      }
-      edgeTris_[it->second].push_back(static_cast<int>(t));
-      triEdges_[t][k] = it->second;
-    }
-  }
-  for (int i = 0; i < X.cols(); ++i)
-    if (!vertexNeighbours_[i].empty()) verts_.push_back(i);
+  // Shared by every scene variant with the same mesh (input cache).
+  const auto surface = io::cachedDerived<SurfaceTopology>("collision surface", io::keyBytes(T) + io::keyBytes(X),
+                                                       [&] { return surfaceTopology(T, X); });
+  if (surface->tris.empty()) throw error("the topology has no boundary triangles");
+  tris_ = surface->tris;
+  verts_ = surface->verts;
+  edges_ = surface->edges;
+  triEdges_ = surface->triEdges;
+  edgeTris_ = surface->edgeTris;
+  vertexNeighbours_ = surface->vertexNeighbours;
   bvh_ = std::make_shared<Bvh>();
   fitBoxes(X);
   bvh_->tree.build(bvh_->boxes);

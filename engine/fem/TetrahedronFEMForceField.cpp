@@ -1,5 +1,6 @@
 #include <Eigen/Dense>
 #include "engine/fem/TetrahedronFEMForceField.h"
+#include "io/scene/InputCache.h"
 
 #include <stdexcept>
 
@@ -53,7 +54,8 @@ void TetrahedronFEMForceField::init() {
     }
     rot_[e] = fem::frame(method_, X);
   }
-  colors_ = colorElements(tets_, n);
+  colors_ = *io::cachedDerived<std::vector<std::vector<int>>>("element colouring", io::keyBytes(tets_) + std::to_string(n),
+                                                              [&] { return colorElements(tets_, n); });
 }
 
 Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {

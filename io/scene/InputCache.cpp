@@ -1,6 +1,7 @@
 #include "io/scene/InputCache.h"
 
 #include <filesystem>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -19,8 +20,12 @@ struct Key {
 struct Cache {
   std::mutex mutex;
   std::map<Key, std::shared_ptr<const void>> entries;
+  // Derived values: (what, type, key bytes), oldest first.
+  std::deque<std::pair<std::tuple<std::string, std::string, std::string>, std::shared_ptr<const void>>> derived;
   long hits = 0, reads = 0;
 };
+
+constexpr size_t kDerivedEntries = 32;
 
 Cache& cache() {
   static Cache c;
@@ -58,6 +63,22 @@ std::shared_ptr<const void> cachedInput(const std::string& path, const std::type
   return value;
 }
 
+std::shared_ptr<const void> cachedDerived(const std::string& what, const std::type_info& type, std::string key,
+                                          const std::function<std::shared_ptr<const void>()>& compute) {
+  Cache& c = cache();
+  auto id = std::make_tuple(what, std::string(type.name()), std::move(key));
+  std::lock_guard<std::mutex> lock(c.mutex);
+  for (const auto& [k, v] : c.derived)
+    if (k == id) {
+      ++c.hits;
+      return v;
+    }
+  auto value = compute();
+  if (c.derived.size() >= kDerivedEntries) c.derived.pop_front();
+  c.derived.emplace_back(std::move(id), value);
+  return value;
+}
+
 }  // namespace detail
 
 InputCacheStats inputCacheStats() {
@@ -70,6 +91,7 @@ void clearInputCache() {
   Cache& c = cache();
   std::lock_guard<std::mutex> lock(c.mutex);
   c.entries.clear();
+  c.derived.clear();
 }
 
 }  // namespace viscera::io
