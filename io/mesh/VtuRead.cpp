@@ -1,6 +1,10 @@
 // VTK XML UnstructuredGrid (.vtu) reader: inline "ascii" and base64 "binary" DataArrays, the
-// latter plain or zlib-compressed (compressor="vtkZLibDataCompressor"). The XML subset VTK
-// writes is parsed here to keep the module free of XML libraries.
+// latter plain or zlib-compressed (compressor="vtkZLibDataCompressor"). Scenes and .pvd series
+// are read with pugixml; .vtu files keep this small parser of the XML subset VTK writes because
+// (1) VTK files may end in raw <AppendedData> bytes, which an XML library rejects before the
+// reader can say what is unsupported, and (2) its messages name the unclosed or mismatched
+// element and the line it was opened on (tests/io/mesh_malformed_test.cpp), where pugixml reports
+// an offset and "Start-end tags mismatch".
 #include <zlib.h>
 
 #include <algorithm>
