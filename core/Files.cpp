@@ -6,14 +6,18 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <functional>
+#include <thread>
 
 #include "core/Error.h"
 
 namespace viscera {
 
 void writeFileAtomic(const std::string& path, const std::string& content) {
-  // Same folder as the target, so the rename stays on one file system and is atomic.
-  const std::string temp = path + ".tmp." + std::to_string(::getpid());
+  // Same folder as the target, so the rename stays on one file system and is atomic; named by
+  // process and thread, so that runs in parallel threads never share a temporary.
+  const std::string temp = path + ".tmp." + std::to_string(::getpid()) + "." +
+                           std::to_string(std::hash<std::thread::id>()(std::this_thread::get_id()) % 1000000);
   auto failWith = [&](int err, const char* step, bool removeTemp) {
     if (removeTemp) ::unlink(temp.c_str());
     throw Error(SourceLoc{path}, std::string("cannot write file: ") + step + " " + temp + " failed: " + std::strerror(err));

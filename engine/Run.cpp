@@ -16,6 +16,7 @@
 #include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
+#include "core/Text.h"
 
 namespace viscera {
 
@@ -29,9 +30,9 @@ int stepsOf(const RunOptions& o, const Scene& scene) {
     return *o.steps;
   }
   if (o.time) {
-    const double n = std::llround(*o.time / scene.dt());
-    if (!(*o.time >= 0) || n > 2e9) throw Error("a run time of " + std::to_string(*o.time) + " is not a usable duration");
-    return static_cast<int>(n);
+    const double n = *o.time / scene.dt();
+    if (!(n >= 0) || n > 2e9) throw Error("a run time of " + formatNumber(*o.time) + " is not a usable duration");
+    return static_cast<int>(std::llround(n));
   }
   return 100;
 }
