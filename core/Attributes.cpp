@@ -1,4 +1,5 @@
 #include "core/Attributes.h"
+#include "core/Text.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -56,10 +57,14 @@ void splitNumbersAndUnit(const std::string& text, std::vector<double>& nums, std
   size_t i = 0;
   for (; i < toks.size(); ++i) {
     const std::string& t = toks[i];
-    char* end = nullptr;
-    double d = std::strtod(t.c_str(), &end);
-    if (end == t.c_str()) break;  // not a number: the unit starts here
-    if (*end != '\0') {
+    double d = 0;
+    const size_t used = parseNumberPrefix(t, d);
+    if (used == 0) break;  // not a number: the unit starts here
+    if (used < t.size()) {
+      const char* end = t.c_str() + used;
+      const std::string lead = t.substr(0, used);
+      if ((*end == 'x' || *end == 'X') && (lead == "0" || lead == "-0" || lead == "+0"))
+        throw std::invalid_argument("'" + t + "' is not a number (hexadecimal is not accepted)");
       // "5kPa": a number glued to its unit
       if (i + 1 == toks.size() && std::isalpha(static_cast<unsigned char>(*end))) {
         nums.push_back(d);

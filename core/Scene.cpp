@@ -1,6 +1,7 @@
 #include "core/Scene.h"
 
 #include <filesystem>
+#include <map>
 #include <stdexcept>
 
 namespace viscera {
@@ -89,6 +90,16 @@ struct Builder {
       node.setActive(false);
       notes.push_back(el.loc.str() + ": note: node '" + node.name() + "' is inactive (activated=\"false\"): it and its "
                       "sub-nodes are not simulated");
+    }
+    // Names given in one node must differ: a link names one component.
+    std::map<std::string, const ElementDesc*> named;
+    for (const auto& child : el.children) {
+      if (const AttrDesc* n = child.find("name"); n && !n->value.empty()) {
+        auto [it, fresh] = named.emplace(n->value, &child);
+        if (!fresh)
+          throw Error(n->loc, child.tag + ".name: '" + n->value + "' is already the name of the <" + it->second->tag + "> at " +
+                                  it->second->loc.str() + " in this node");
+      }
     }
     for (const auto& child : el.children) {
       if (child.tag == "Node") {

@@ -13,18 +13,26 @@ std::string_view dropPlus(std::string_view s) {
 }
 }  // namespace
 
-bool parseNumber(std::string_view s, double& out) {
-  s = dropPlus(s);
-  if (s.empty()) return false;
+size_t parseNumberPrefix(std::string_view s, double& out) {
+  const std::string_view body = dropPlus(s);
+  const size_t plus = s.size() - body.size();
+  if (body.empty()) return 0;
   double v = 0;
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v, std::chars_format::general);
-  if (end != s.data() + s.size()) return false;
+  const auto [end, ec] = std::from_chars(body.data(), body.data() + body.size(), v, std::chars_format::general);
+  const size_t used = static_cast<size_t>(end - body.data());
   if (ec == std::errc::result_out_of_range) {
     // strtod rounds the same text to +-HUGE_VAL (overflow) or to 0 / a subnormal (underflow).
-    v = std::strtod(std::string(s).c_str(), nullptr);
+    v = std::strtod(std::string(body.substr(0, used)).c_str(), nullptr);
   } else if (ec != std::errc()) {
-    return false;
+    return 0;
   }
+  out = v;
+  return plus + used;
+}
+
+bool parseNumber(std::string_view s, double& out) {
+  double v = 0;
+  if (s.empty() || parseNumberPrefix(s, v) != s.size()) return false;
   out = v;
   return true;
 }

@@ -12,6 +12,10 @@ namespace viscera {
 // report overflow as "not finite" rather than "not a number". "nan" and "inf" parse: callers that
 // need finite values check.
 bool parseNumber(std::string_view s, double& out);
+// The number at the start of `s` ("5kPa" -> 5, "1e3" -> 1000) by the same rules; returns how
+// many characters it took (0: `s` does not start with a number). Hexadecimal ("0x1F") is not a
+// number here: it reads as 0 followed by "x1F".
+size_t parseNumberPrefix(std::string_view s, double& out);
 // The whole of `s` as an integer (a leading '+' accepted); false if it does not fit.
 bool parseInteger(std::string_view s, long long& out);
 // The shortest text that reads back as exactly `v` ("0.1", "1e-07", "0.3333333333333333").

@@ -14,6 +14,15 @@ Simulation::Simulation(Scene& scene) : scene_(scene) {
   if (!pipeline_ && (!scene_.all<SphereCollisionModel>().empty() || !scene_.all<SurfaceCollisionModel>().empty()))
     scene_.addNote("note: the scene has collision models but no CollisionPipeline: nothing collides");
   solvers_ = scene_.all<OdeSolver>();
+  // One ODE solver a node: two would integrate the same bodies twice a step.
+  for (size_t i = 0; i < solvers_.size(); ++i)
+    for (size_t j = 0; j < i; ++j) {
+      const auto& a = dynamic_cast<const Component&>(*solvers_[j]);
+      const auto& b = dynamic_cast<const Component&>(*solvers_[i]);
+      if (&a.node() == &b.node())
+        throw b.error("a second ODE solver in node " + b.node().path() + " (the first is the " + a.typeName() + " at " +
+                      a.loc().str() + "): the node would be integrated twice per step");
+    }
   corrections_ = scene_.all<Correction>();
   mappings_ = scene_.all<Mapping>();
   stateful_ = scene_.all<Stateful>();

@@ -1,6 +1,7 @@
 #include "io/scene/SceneReader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <pugixml.hpp>
@@ -9,6 +10,15 @@
 namespace viscera::io {
 
 namespace {
+
+// Deeper scenes are refused rather than followed (every later stage walks the tree).
+constexpr int kMaxDepth = 256;
+
+bool blank(const char* s) {
+  for (; *s; ++s)
+    if (!std::isspace(static_cast<unsigned char>(*s))) return false;
+  return true;
+}
 
 // Maps byte offsets to 1-based line and column.
 class LineIndex {
@@ -63,11 +73,20 @@ struct Converter {
     }
   }
 
-  ElementDesc convert(const pugi::xml_node& n) const {
+  // Text in a scene is a mistake (a '<' lost, a value outside its quotes): the elements would
+  // otherwise be read without it, silently.
+  void refuseText(const pugi::xml_node& c, const std::string& where) const {
+    if ((c.type() == pugi::node_pcdata || c.type() == pugi::node_cdata) && !blank(c.value()))
+      throw Error(at(static_cast<size_t>(std::max<ptrdiff_t>(0, c.offset_debug()))),
+                  "text " + quoted(c.value()) + " " + where + ": a scene holds elements only (is a '<' missing?)");
+  }
+
+  ElementDesc convert(const pugi::xml_node& n, int depth = 0) const {
     ElementDesc el;
     el.tag = n.name();
     size_t start = elementStart(n);
     el.loc = at(start);
+    if (depth > kMaxDepth) throw Error(el.loc, "elements nested more than " + std::to_string(kMaxDepth) + " deep");
     for (const auto& a : n.attributes()) {
       AttrDesc d;
       d.name = a.name();
@@ -75,8 +94,10 @@ struct Converter {
       d.loc = at(attributeOffset(start, d.name));
       el.attrs.push_back(std::move(d));
     }
-    for (const auto& c : n.children())
-      if (c.type() == pugi::node_element) el.children.push_back(convert(c));
+    for (const auto& c : n.children()) {
+      if (c.type() == pugi::node_element) el.children.push_back(convert(c, depth + 1));
+      else refuseText(c, "inside <" + el.tag + ">");
+    }
     return el;
   }
 };
@@ -93,6 +114,18 @@ SceneDesc parseSceneText(const std::string& text, const std::string& file) {
   }
   pugi::xml_node root = doc.document_element();
   if (!root) throw Error(SourceLoc{file, 1, 1}, "the file has no XML element");
+  for (const auto& c : doc.children()) {
+    if (c.type() == pugi::node_element && c != root)
+      throw Error(conv.at(conv.elementStart(c)), "a second root element <" + std::string(c.name()) + ">: a scene has one root <Node>");
+    conv.refuseText(c, "outside the root element");
+  }
+  // pugixml drops text before the first and after the last element without a word.
+  const size_t first = text.find('<'), last = text.rfind('>');
+  for (const auto& [from, to] : {std::pair<size_t, size_t>{0, first}, {last + 1, text.size()}})
+    for (size_t i = from; i < to && i < text.size(); ++i)
+      if (!std::isspace(static_cast<unsigned char>(text[i])) && !(i < 3 && text.compare(0, 3, "\xEF\xBB\xBF") == 0))
+        throw Error(conv.at(i), "text " + quoted(std::string_view(text).substr(i, to - i)) +
+                                    " outside the root element: a scene holds elements only");
   SceneDesc desc;
   desc.file = file;
   desc.directory = std::filesystem::path(file).parent_path().string();
