@@ -69,10 +69,18 @@ RunResult runLoop(Simulation& sim, const RunOptions& o) {
       if (o.recordWrench) in.history.push_back(in.last);
     }
     for (RunObserver* ob : o.observers) ob->step(sim);
+    for (RunObserver* ob : o.observers)
+      if (auto why = ob->stopReason()) {
+        r.stopReason = *why;
+        break;
+      }
+    if (!r.stopReason.empty()) break;
   }
   sim.end();
   r.wallSeconds = now() - t0;
-  r.status = r.failure ? RunResult::Status::Diverged : RunResult::Status::Ok;
+  r.status = r.failure            ? RunResult::Status::Diverged
+             : r.stopReason.empty() ? RunResult::Status::Ok
+                                    : RunResult::Status::Stopped;
   r.steps = sim.steps() - first;
   r.endTime = sim.time();
   for (const MechanicalObject* s : scene.all<MechanicalObject>())
@@ -138,8 +146,9 @@ std::string summaryJson(const RunResult& r, const std::string& scene) {
   auto vec = [](const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); };
   Json j;
   j["scene"] = scene;
-  j["status"] = r.ok() ? "ok" : "diverged";
+  j["status"] = r.ok() ? "ok" : r.failure ? "diverged" : "stopped";
   if (r.failure) j["failure"] = r.failure->str();
+  if (!r.stopReason.empty()) j["stop_reason"] = r.stopReason;
   j["steps"] = r.steps;
   j["dt"] = r.dt;
   j["simulated_time"] = r.simulatedTime();

@@ -30,6 +30,9 @@ class RunObserver {
   virtual void begin(const Simulation& sim, int totalSteps) {}
   virtual void step(const Simulation& sim) {}
   virtual void end(const Simulation& sim, const RunResult& result) {}
+  // Asked after every step: a reason ends the run there with status Stopped (a time budget, a
+  // batch that was cancelled, an interrupt).
+  virtual std::optional<std::string> stopReason() const { return std::nullopt; }
 };
 
 struct RunOptions {
@@ -55,9 +58,10 @@ struct WrenchSample {
 };
 
 struct RunResult {
-  enum class Status { Ok, Diverged };
+  enum class Status { Ok, Diverged, Stopped };
   Status status = Status::Ok;
   std::optional<Diverged> failure;
+  std::string stopReason;               // Stopped: what an observer gave
   int steps = 0;                        // steps taken (by this run)
   double dt = 0, startTime = 0, endTime = 0;
   double wallSeconds = 0;

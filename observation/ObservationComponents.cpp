@@ -16,6 +16,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "observation/DepthCamera.h"
 #include "observation/SurfaceIndex.h"
+#include "observation/Tissue.h"
 #include "engine/rigid/Placement.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
@@ -28,23 +29,6 @@ std::string vecText(const Eigen::Vector3d& v) {
   std::ostringstream o;
   o << "(" << v.x() << ", " << v.y() << ", " << v.z() << ")";
   return o.str();
-}
-
-// The tetrahedra of a deformable body: those of the last topology with tetrahedra in its node or
-// above (as its force field finds them), provided they index its nodes; nullptr when it has none.
-const TetList* bodyTetrahedra(MechanicalObject& state) {
-  for (const Node* n = &state.node(); n; n = n->parent()) {
-    const auto& comps = n->components();
-    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
-      auto* topo = dynamic_cast<Topology*>(it->get());
-      if (!topo) continue;
-      state.scene().initComponent(**it);
-      const TetList& tets = topo->tetrahedra();
-      if (tets.cols() == 0) continue;
-      return tets.maxCoeff() < state.size() && tets.minCoeff() >= 0 ? &tets : nullptr;
-    }
-  }
-  return nullptr;
 }
 
 class DepthCameraComponent : public Component, public Observer {
@@ -69,12 +53,8 @@ class DepthCameraComponent : public Component, public Observer {
     options_.frame = attrs_.str("frame") == "scene" ? obs::PointFrame::Scene : obs::PointFrame::Camera;
 
     // Labels: the deformable bodies first (in scene order), then the spheres, then the table.
-    for (MechanicalObject* state : scene().all<MechanicalObject>()) {
-      scene().initComponent(*state);
-      const TetList* tets = bodyTetrahedra(*state);
-      if (!tets) continue;
-      Body b{state, obs::boundaryTriangles(*tets, state->x)};
-      if (b.triangles.cols() == 0) continue;
+    for (obs::TissueSurface& b : obs::tissueSurfaces(scene())) {
+      MechanicalObject* state = b.state;
       const double w = obs::windingNumber(state->x, b.triangles, position);
       if (std::abs(w) > 0.5)
         throw error(poseAttr(), "the camera at " + vecText(position) + " is inside the body of '" + state->name() +
@@ -135,20 +115,22 @@ class DepthCameraComponent : public Component, public Observer {
   }
 
   // "frames": the number of frames written; "points": the points of each; "emptyFrames": frames
-  // that had no point (not written: a cloud file holds at least one).
+  // that had no point (not written: a cloud file holds at least one); "cameraToScene": the pose
+  // (16 numbers, row by row); "sceneFrame": 1 when the points are written in the scene frame.
   bool field(const std::string& n, FieldValue& out) const override {
     if (n == "frames") out.values = {static_cast<double>(pointCounts_.size())};
     else if (n == "points") out.values = pointCounts_;
     else if (n == "emptyFrames") out.values = {static_cast<double>(emptyFrames_)};
+    else if (n == "cameraToScene") {  // the 4 x 4 pose, row by row
+      out.values.clear();
+      for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) out.values.push_back(pose_.matrix()(r, c));
+    } else if (n == "sceneFrame") out.values = {options_.frame == obs::PointFrame::Scene ? 1.0 : 0.0};
     else return false;
     return true;
   }
 
  private:
-  struct Body {
-    MechanicalObject* state = nullptr;
-    obs::TriangleList triangles;  // 3 x #boundary triangles, outward at the start
-  };
 
   // The library reports "field: what is wrong"; the fields are named as this component's attributes.
   template <class F>
@@ -251,7 +233,7 @@ class DepthCameraComponent : public Component, public Observer {
   double near_ = 0, far_ = 0;
   obs::DepthNoise noise_;
   obs::CaptureOptions options_;
-  std::vector<Body> bodies_;
+  std::vector<obs::TissueSurface> bodies_;  // triangles outward at the start
   std::vector<SphereCollisionModel*> spheres_;
   std::optional<obs::PlaneInput> table_;
   double rate_ = 30, t0_ = 0;

@@ -29,51 +29,13 @@ namespace {
 
 const char* const kCameraTag = "DepthCamera";
 
-// A command-line option that sets one DepthCamera attribute.
-struct AttributeOption {
-  AttributeOption(const char* f, const char* a, const char* h) : flag(f), attribute(a), help(h) {}
-  const char* flag;
-  const char* attribute;
-  const char* help;
-  CLI::Option* option = nullptr;  // set when the subcommand is declared
-  std::string value;
-};
-
 struct CameraOptions {
-  std::string scene, out, name = "camera";
+  std::string scene, out;
   std::vector<std::string> sets;  // --set ADDRESS=VALUE edits of the scene
   double time = 0;
   int steps = -1;
-  bool quiet = false, ascii = false, tissueOnly = false;
-  CLI::Option* asciiFlag = nullptr;
-  CLI::Option* tissueFlag = nullptr;
-  CLI::Option* nameOption = nullptr;
-  std::vector<AttributeOption> attributes = {
-      {"--position", "position", "camera centre \"x y z\" (scene frame, scene units)"},
-      {"--look-at", "lookAt", "point the camera looks at \"x y z\""},
-      {"--up", "up", "scene direction that is up in the image (default \"0 0 1\")"},
-      {"--transform", "transform", "camera -> scene transform file, instead of --position/--look-at/--up"},
-      {"--width", "width", "image width in pixels (640)"},
-      {"--height", "height", "image height in pixels (480)"},
-      {"--fov", "fov", "horizontal field of view in degrees (60)"},
-      {"--fx", "fx", "focal length in pixels, instead of --fov"},
-      {"--fy", "fy", "vertical focal length in pixels (default fx)"},
-      {"--cx", "cx", "principal point column (default (width - 1) / 2)"},
-      {"--cy", "cy", "principal point row (default (height - 1) / 2)"},
-      {"--near", "near", "nearest depth measured (0.2 m)"},
-      {"--far", "far", "farthest depth measured (1.5 m)"},
-      {"--rate", "rate", "frames per unit of simulated time (30 Hz)"},
-      {"--sigma0", "sigma0", "depth noise standard deviation at z0 (2 mm; 0: none)"},
-      {"--z0", "z0", "distance at which the depth noise is sigma0 (400 mm)"},
-      {"--dropout", "dropout", "probability that a pixel gives no point (0.01)"},
-      {"--grazing-angle", "grazingAngle", "largest incidence angle giving a point, degrees (80)"},
-      {"--depth-unit", "depthUnit", "depth quantisation step (0.125 mm; 0: none)"},
-      {"--seed", "seed", "random seed of the noise (1)"},
-      {"--stride", "stride", "keep every stride-th pixel of every stride-th row (1)"},
-      {"--frame", "frame", "frame of the points: camera or scene (camera)"},
-      {"--format", "format", "file format of the frames: pcd or ply (pcd)"},
-      {"--table", "table", "infinite table plane \"nx ny nz d\" (n . x = d)"},
-  };
+  bool quiet = false;
+  CameraOptionSet camera;
 };
 
 // Blanks for commas, so that "1,2,3" reads as "1 2 3".
@@ -82,10 +44,6 @@ std::string listText(std::string s) {
   return s;
 }
 
-bool hasCamera(const ElementDesc& el) {
-  if (el.tag == kCameraTag) return true;
-  return std::any_of(el.children.begin(), el.children.end(), hasCamera);
-}
 
 // Removes the scene's other outputs (exporters): this command writes camera frames only.
 void dropOtherOutputs(ElementDesc& el, std::vector<std::string>& dropped) {
@@ -103,24 +61,6 @@ void dropOtherOutputs(ElementDesc& el, std::vector<std::string>& dropped) {
   for (auto& ch : c) dropOtherOutputs(ch, dropped);
 }
 
-// The DepthCamera element made from the options; each attribute's location names its option, so
-// that errors read "--fov: DepthCamera.fov: ...".
-ElementDesc cameraElement(const CameraOptions& o) {
-  ElementDesc el;
-  el.tag = kCameraTag;
-  el.loc = SourceLoc{"viscera camera options"};
-  el.attrs.push_back({"name", o.name, SourceLoc{"--name"}});
-  for (const AttributeOption& a : o.attributes) {
-    if (a.option->count() == 0) continue;
-    std::string value = listText(a.value);
-    // A transform file given on the command line is relative to the working folder, not the scene.
-    if (std::string(a.attribute) == "transform") value = std::filesystem::absolute(a.value).string();
-    el.attrs.push_back({a.attribute, value, SourceLoc{a.flag}});
-  }
-  if (o.ascii) el.attrs.push_back({"binary", "false", SourceLoc{"--ascii"}});
-  if (o.tissueOnly) el.attrs.push_back({"tissueOnly", "true", SourceLoc{"--tissue-only"}});
-  return el;
-}
 
 // "3 frames to out/camera (points per frame: min 1200, mean 1234.5, max 1300)".
 std::string frameSummary(Component& camera, const Scene& scene) {
@@ -151,25 +91,7 @@ int runCamera(const CameraOptions& o) {
   for (const auto& a : o.sets) desc.applySetting(a);
   std::vector<std::string> notes;
   dropOtherOutputs(desc.root, notes);
-  std::vector<std::string> given;
-  for (const AttributeOption& a : o.attributes)
-    if (a.option->count() > 0) given.push_back(a.flag);
-  for (const CLI::Option* f : {o.asciiFlag, o.tissueFlag, o.nameOption})
-    if (f->count() > 0) given.push_back(f->get_name());
-  if (hasCamera(desc.root)) {
-    if (!given.empty())
-      throw Error(SourceLoc{o.scene}, "the scene has its own DepthCamera; camera options (" + given.front() +
-                                          (given.size() > 1 ? ", ..." : "") + ") apply only to scenes without one");
-  } else {
-    const bool placed = std::any_of(o.attributes.begin(), o.attributes.end(), [](const AttributeOption& a) {
-      const std::string attr = a.attribute;
-      return (attr == "position" || attr == "lookAt" || attr == "transform") && a.option->count() > 0;
-    });
-    if (!placed)
-      throw Error(SourceLoc{o.scene},
-                  "the scene has no DepthCamera; place one with --position and --look-at (or --transform)");
-    desc.root.children.push_back(cameraElement(o));
-  }
+  o.camera.apply(desc);
 
   auto scene = buildScene(desc);
   scene->setOutputDirectory(o.out);
@@ -199,6 +121,84 @@ int runCamera(const CameraOptions& o) {
 
 }  // namespace
 
+bool hasDepthCamera(const ElementDesc& el) {
+  if (el.tag == kCameraTag) return true;
+  return std::any_of(el.children.begin(), el.children.end(), hasDepthCamera);
+}
+
+CameraOptionSet::CameraOptionSet() {
+  attributes_ = {
+      {"--position", "position", "camera centre \"x y z\" (scene frame, scene units)"},
+      {"--look-at", "lookAt", "point the camera looks at \"x y z\""},
+      {"--up", "up", "scene direction that is up in the image (default \"0 0 1\")"},
+      {"--transform", "transform", "camera -> scene transform file, instead of --position/--look-at/--up"},
+      {"--width", "width", "image width in pixels (640)"},
+      {"--height", "height", "image height in pixels (480)"},
+      {"--fov", "fov", "horizontal field of view in degrees (60)"},
+      {"--fx", "fx", "focal length in pixels, instead of --fov"},
+      {"--fy", "fy", "vertical focal length in pixels (default fx)"},
+      {"--cx", "cx", "principal point column (default (width - 1) / 2)"},
+      {"--cy", "cy", "principal point row (default (height - 1) / 2)"},
+      {"--near", "near", "nearest depth measured (0.2 m)"},
+      {"--far", "far", "farthest depth measured (1.5 m)"},
+      {"--rate", "rate", "frames per unit of simulated time (30 Hz)"},
+      {"--sigma0", "sigma0", "depth noise standard deviation at z0 (2 mm; 0: none)"},
+      {"--z0", "z0", "distance at which the depth noise is sigma0 (400 mm)"},
+      {"--dropout", "dropout", "probability that a pixel gives no point (0.01)"},
+      {"--grazing-angle", "grazingAngle", "largest incidence angle giving a point, degrees (80)"},
+      {"--depth-unit", "depthUnit", "depth quantisation step (0.125 mm; 0: none)"},
+      {"--seed", "seed", "random seed of the noise (1)"},
+      {"--stride", "stride", "keep every stride-th pixel of every stride-th row (1)"},
+      {"--frame", "frame", "frame of the points: camera or scene (camera)"},
+      {"--format", "format", "file format of the frames: pcd or ply (pcd)"},
+      {"--table", "table", "infinite table plane \"nx ny nz d\" (n . x = d)"},
+  };
+}
+
+void CameraOptionSet::declare(CLI::App& cmd) {
+  nameOption_ = cmd.add_option("--name", name, "name of the added camera, and its folder under --out (camera)");
+  for (AttributeOption& a : attributes_) a.option = cmd.add_option(a.flag, a.value, a.help);
+  asciiFlag_ = cmd.add_flag("--ascii", ascii_, "ASCII files instead of binary");
+  tissueFlag_ = cmd.add_flag("--tissue-only", tissueOnly, "keep only the points on the tissue");
+}
+
+void CameraOptionSet::apply(SceneDesc& desc, const std::map<std::string, std::string>& defaults) const {
+  std::vector<std::string> given;
+  for (const AttributeOption& a : attributes_)
+    if (a.option->count() > 0) given.push_back(a.flag);
+  for (const CLI::Option* f : {asciiFlag_, tissueFlag_, nameOption_})
+    if (f->count() > 0) given.push_back(f->get_name());
+  if (hasDepthCamera(desc.root)) {
+    if (!given.empty())
+      throw Error(SourceLoc{desc.file}, "the scene has its own DepthCamera; camera options (" + given.front() +
+                                            (given.size() > 1 ? ", ..." : "") + ") apply only to scenes without one");
+    return;
+  }
+  const bool placed = std::any_of(attributes_.begin(), attributes_.end(), [](const AttributeOption& a) {
+    const std::string attr = a.attribute;
+    return (attr == "position" || attr == "lookAt" || attr == "transform") && a.option->count() > 0;
+  });
+  if (!placed)
+    throw Error(SourceLoc{desc.file}, "the scene has no DepthCamera; place one with --position and --look-at (or --transform)");
+  // Each attribute's location names its option, so that errors read "--fov: DepthCamera.fov: ...".
+  ElementDesc el;
+  el.tag = kCameraTag;
+  el.loc = SourceLoc{"camera options"};
+  el.attrs.push_back({"name", name, SourceLoc{"--name"}});
+  for (const AttributeOption& a : attributes_) {
+    if (a.option->count() == 0) continue;
+    std::string value = listText(a.value);
+    // A transform file given on the command line is relative to the working folder, not the scene.
+    if (std::string(a.attribute) == "transform") value = std::filesystem::absolute(a.value).string();
+    el.attrs.push_back({a.attribute, value, SourceLoc{a.flag}});
+  }
+  if (ascii_) el.attrs.push_back({"binary", "false", SourceLoc{"--ascii"}});
+  if (tissueOnly) el.attrs.push_back({"tissueOnly", "true", SourceLoc{"--tissue-only"}});
+  for (const auto& [attr, value] : defaults)
+    if (!el.find(attr)) el.attrs.push_back({attr, value, SourceLoc{"default of this command"}});
+  desc.root.children.push_back(std::move(el));
+}
+
 void addCameraCommand(CLI::App& app, std::function<int()>& action) {
   auto o = std::make_shared<CameraOptions>();
   auto* cmd = app.add_subcommand("camera", "run a scene and write the point clouds of its depth camera(s)");
@@ -215,10 +215,7 @@ void addCameraCommand(CLI::App& app, std::function<int()>& action) {
       ->excludes(steps);
   cmd->add_flag("--quiet", o->quiet, "no notes or run summary (the frame summary is still printed)");
   cmd->add_option("--set", o->sets, "set a scene attribute, ADDRESS=VALUE (node/path/component.attribute); repeatable");
-  o->nameOption = cmd->add_option("--name", o->name, "name of the added camera, and its folder under --out (camera)");
-  for (AttributeOption& a : o->attributes) a.option = cmd->add_option(a.flag, a.value, a.help);
-  o->asciiFlag = cmd->add_flag("--ascii", o->ascii, "ASCII files instead of binary");
-  o->tissueFlag = cmd->add_flag("--tissue-only", o->tissueOnly, "keep only the points on the tissue");
+  o->camera.declare(*cmd);
   cmd->callback([o, &action] { action = [o] { return runCamera(*o); }; });
 }
 

@@ -33,6 +33,14 @@ void requireParentFolder(const std::string& path, const std::string& option) {
     throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
 }
 
+void requireNotAnInput(const std::string& path, const std::string& option, const std::vector<std::string>& inputs) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return;
+  for (const auto& in : inputs)
+    if (std::filesystem::equivalent(path, in, ec) && !ec)
+      throw Error(SourceLoc{path}, option + ": this is an input of the command (" + in + "); it is not overwritten");
+}
+
 std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape) {
   const auto w = words(text);
   if (w.size() != count)

@@ -20,4 +20,8 @@ void requireParentFolder(const std::string& path, const std::string& option);
 // `s` as a quoted JSON string (nlohmann::json's escaping; invalid UTF-8 replaced).
 std::string jsonString(const std::string& s);
 
+// Throws viscera::Error "PATH: OPTION: is an input of this command (WHAT); it is not overwritten"
+// when `path` names the same file as one of `inputs` (by inode: links and other spellings count).
+void requireNotAnInput(const std::string& path, const std::string& option, const std::vector<std::string>& inputs);
+
 }  // namespace viscera::cli

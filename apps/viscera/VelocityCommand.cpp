@@ -5,14 +5,9 @@
 #include "apps/viscera/VelocityCommand.h"
 #include "core/Files.h"
 #include "apps/viscera/CliText.h"
+#include "apps/viscera/Gnuplot.h"
 
 #include <CLI/CLI.hpp>
-#include <fcntl.h>
-#include <spawn.h>
-#include <stdlib.h>
-#include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -34,8 +29,6 @@
 #include "robot/encoder/Motion.h"
 #include "robot/encoder/VelocityBench.h"
 #include "core/Text.h"
-
-extern char** environ;
 
 namespace viscera {
 namespace {
@@ -211,53 +204,6 @@ std::string formatGnuplot(const CompareOptions& o, const enc::BenchResult& r, co
   return g.str();
 }
 
-// Runs gnuplot on the script in `dir`, writing the PNG to a temporary name there and renaming it
-// into place, so that velocity.png is either complete or absent.
-void plot(const fs::path& dir) {
-  std::string temp = (dir / "velocity.png.XXXXXX").string();
-  const int fd = ::mkstemp(temp.data());
-  if (fd < 0) throw Error(SourceLoc{(dir / "velocity.png").string()}, std::string("cannot create the plot: ") + std::strerror(errno));
-  // mkstemp makes the file private; the plot is as readable as the other outputs.
-  const mode_t mask = ::umask(0);
-  ::umask(mask);
-  ::fchmod(fd, 0666 & ~mask);
-  ::close(fd);
-  const std::string tempName = fs::path(temp).filename().string();
-  auto fail = [&](const std::string& what) {
-    std::error_code ec;
-    fs::remove(temp, ec);
-    throw Error(SourceLoc{(dir / "velocity.gp").string()}, what);
-  };
-
-  const std::vector<std::string> args = {"gnuplot", "-e", "outfile='" + tempName + "'", "velocity.gp"};
-  std::vector<char*> argv;
-  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addchdir_np(&actions, dir.c_str());
-  posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  const int err = ::posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (err == ENOENT)
-    fail("gnuplot was not found on PATH, so velocity.png was not made (install the Debian package gnuplot-nox, or pass "
-         "--no-plot); velocity.csv and summary.json are written");
-  if (err != 0) fail(std::string("cannot run gnuplot: ") + std::strerror(err));
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) fail(std::string("lost the gnuplot process: ") + std::strerror(errno));
-  }
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    fail("gnuplot failed on the plot script (" +
-         (WIFEXITED(status) ? "exit code " + std::to_string(WEXITSTATUS(status)) : std::string("killed by a signal")) + ")");
-  if (fs::file_size(temp) == 0) fail("gnuplot wrote no image");
-  std::error_code ec;
-  fs::rename(temp, dir / "velocity.png", ec);
-  if (ec) fail("cannot move the plot into place: " + ec.message());
-}
-
 int compare(CompareOptions o) {
   if (o.format == "rev6") o.spec.format = enc::RegisterFormat::Rev6;
   else if (o.format == "rev7") o.spec.format = enc::RegisterFormat::Rev7;
@@ -294,7 +240,7 @@ int compare(CompareOptions o) {
   std::cout << formatTable(o, result, rows);
   if (!o.noPlot) {
     writeFileAtomic((dir / "velocity.gp").string(), formatGnuplot(o, result, rows));
-    plot(dir);
+    plotWithGnuplot(dir, "velocity.gp", "velocity.png");
   }
   std::cerr << "wrote " << (dir / "velocity.csv").string() << ", summary.json" << (o.noPlot ? "" : ", velocity.gp and velocity.png")
             << " (edges: " << result.testEdges << " on " << formatNumber(o.spec.test.lines) << " lines, " << result.truthEdges

@@ -15,12 +15,15 @@
 #include "core/Files.h"
 #include "builtin/Builtins.h"
 #include "apps/viscera/CameraCommand.h"
+#include "apps/viscera/CliText.h"
 #include "apps/viscera/CloudCommand.h"
+#include "apps/viscera/DatasetCommand.h"
 #include "apps/viscera/DistanceCommand.h"
 #include "apps/viscera/EspmCommand.h"
 #include "apps/viscera/KinematicsCommand.h"
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
+#include "apps/viscera/SearchCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
 #include "apps/viscera/VelocityCommand.h"
 #include "engine/Run.h"
@@ -31,6 +34,7 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/mesh/Mesh.h"
+#include "io/scene/InputCache.h"
 #include "io/scene/SceneReader.h"
 
 using namespace viscera;
@@ -61,6 +65,11 @@ void printNotes(const Scene& scene, bool quiet) {
 }
 
 int cmdRun(const RunCommand& o) {
+  // Every output is checked before anything runs: a typo in a folder costs nothing.
+  const std::vector<std::pair<std::string, const char*>> outputs = {
+      {o.summary, "--summary"}, {o.wrench, "--wrench"}, {o.stateOut, "--state-out"}, {o.saveState, "--save-state"}};
+  for (const auto& [path, option] : outputs)
+    if (!path.empty()) cli::requireParentFolder(path, option);
   std::unique_ptr<tbb::global_control> threads;
   if (o.threads > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o.threads);
   auto scene = loadScene(o.scene, o.sets);
@@ -75,6 +84,12 @@ int cmdRun(const RunCommand& o) {
       throw Error(SourceLoc{o.fromState}, e.what());
     }
   }
+  // The scene, its data files (read by now) and the starting state stay as they are.
+  std::vector<std::string> inputs = io::cachedFiles();
+  inputs.push_back(o.scene);
+  if (!o.fromState.empty()) inputs.push_back(o.fromState);
+  for (const auto& [path, option] : outputs)
+    if (!path.empty()) cli::requireNotAnInput(path, option, inputs);
   printNotes(*scene, o.quiet);
   RunOptions ro;
   if (o.steps >= 0) ro.steps = o.steps;
@@ -212,6 +227,8 @@ int main(int argc, char** argv) {
   addCameraCommand(app, action);
   addDistanceCommand(app, action);
   addMeshCommand(app, action);
+  addDatasetCommand(app, action);
+  addSearchCommand(app, action);
 
   try {
     app.parse(argc, argv);

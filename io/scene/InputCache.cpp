@@ -87,6 +87,14 @@ InputCacheStats inputCacheStats() {
   return {c.hits, c.reads, static_cast<long>(c.entries.size())};
 }
 
+std::vector<std::string> cachedFiles() {
+  Cache& c = cache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  std::vector<std::string> files;
+  for (const auto& [key, value] : c.entries) files.push_back(key.path);
+  return files;
+}
+
 void clearInputCache() {
   Cache& c = cache();
   std::lock_guard<std::mutex> lock(c.mutex);

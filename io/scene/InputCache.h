@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 #include <typeinfo>
+#include <vector>
 
 namespace viscera::io {
 
@@ -46,6 +47,9 @@ struct InputCacheStats {
   long hits = 0, reads = 0, entries = 0;
 };
 InputCacheStats inputCacheStats();
+// The files read through the cache so far (canonical paths): the inputs of a run, which its
+// outputs must not overwrite.
+std::vector<std::string> cachedFiles();
 // Forgets every entry (shared copies stay valid).
 void clearInputCache();
 

@@ -311,3 +311,27 @@ TEST(Cli, SaveStateAndContinueFromIt) {
   EXPECT_EQ(other.rc, 2) << other;
   EXPECT_NE(other.err.find("s50.state"), std::string::npos) << other;
 }
+
+TEST(Cli, RunOutputsNeverOverwriteItsInputs) {
+  TempDir tmp;
+  // Copies, so that a failure of the check cannot touch the shipped files.
+  fs::copy_file(sourcePath("scenes/gel_phantom_coarse.xml"), tmp / "scene.xml");
+  fs::copy_file(sourcePath("scenes/palpation_80s.csv"), tmp / "palpation_80s.csv");
+  const std::string scene = slurp(tmp / "scene.xml"), trajectory = slurp(tmp / "palpation_80s.csv");
+  struct Case {
+    const char* option;
+    std::string path;
+  };
+  for (const Case& c : {Case{"--summary", tmp / "scene.xml"}, Case{"--wrench", tmp / "palpation_80s.csv"},
+                        Case{"--state-out", tmp.str() + "/./scene.xml"}, Case{"--save-state", tmp / "palpation_80s.csv"}}) {
+    RunResult r = runViscera({"run", tmp / "scene.xml", "--out", tmp / "out", "--steps", "3", c.option, c.path});
+    EXPECT_EQ(r.rc, 2) << c.option << "\n" << r;
+    EXPECT_NE(r.err.find("is an input of the command"), std::string::npos) << r;
+    EXPECT_EQ(slurp(tmp / "scene.xml"), scene);
+    EXPECT_EQ(slurp(tmp / "palpation_80s.csv"), trajectory);
+  }
+  // A missing output folder is found before the run, not after it.
+  RunResult r = runViscera({"run", tmp / "scene.xml", "--out", tmp / "out", "--steps", "100000", "--wrench", tmp / "no/w.csv"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r;
+}

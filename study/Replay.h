@@ -1,0 +1,84 @@
+// Replaying a measured dataset through a scene and scoring how far the simulation is from it.
+//
+// The scene's instrument follows the dataset's trajectory; at each frame's time the tissue surface
+// (interpolated linearly between the two steps around that time, so frames need not fall on step
+// times) is compared with the frame's cloud, and at each wrench sample's time the instrument's
+// simulated contact force with the measured one. The score (docs/user-guide.md, "How a candidate
+// is scored"):
+//   c_k = RMS cloud -> surface distance of frame k / L        (L: length scale, 1 mm by default)
+//   g_j = |f_sim(t_j) - f_measured(t_j)| / F                  (F: RMS of the measured |f|)
+//   metric = mean_k c_k + mean_j g_j                          (the force term only with a wrench)
+// Both terms are dimensionless; metricSe, sqrt(var c / n_c + var g / n_g), is the standard error
+// of the metric over frames and samples: its noise floor, what a difference between two candidates
+// must exceed to mean something.
+#pragma once
+
+#include <Eigen/Core>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/SceneDesc.h"
+#include "study/Dataset.h"
+
+namespace viscera::study {
+
+struct ScoreOptions {
+  int maxPoints = 2000;  // points scored per frame, chosen evenly through the file (0: all)
+  double maxDistance = std::numeric_limits<double>::infinity();  // farther points are left out (scene units)
+  double lengthScale = 0;  // L in scene units; 0: 1 mm in the scene's units
+  double forceScale = 0;   // F in scene units; 0: the RMS of the measured force magnitude
+  bool useWrench = true;   // score the force when the dataset has a wrench
+};
+
+// A dataset read once and shared, read-only, by every candidate that replays it.
+struct PreparedDataset {
+  Dataset data;
+  std::vector<Eigen::Matrix3Xd> clouds;  // per frame, in the scene frame, at most maxPoints each
+  ScoreOptions score;                    // forceScale filled in from the data when it was 0
+  bool scoresWrench() const { return score.useWrench && data.wrench.has_value(); }
+};
+PreparedDataset prepareDataset(const std::string& folder, const ScoreOptions& options = {});
+
+// The description a dataset is replayed through: the one TrajectoryDriver follows the dataset's
+// trajectory (its placement attributes and time offset removed: the trajectory is in the scene
+// frame and time), and the scene's outputs (exporters, cameras) are removed. Error when the scene
+// has no TrajectoryDriver or several.
+SceneDesc replayDescription(SceneDesc scene, const Dataset& data);
+
+struct ReplayOptions {
+  ScoreOptions score;      // lengthScale 0 is resolved against the scene's units
+  int threads = 1;         // worker threads of the run (0: all cores)
+  double timeBudget = 0;   // wall-clock seconds before the replay is stopped as a timeout (0: none)
+};
+
+// One frame's or one wrench sample's part of the score.
+struct FrameScore {
+  double time = 0;
+  double value = std::numeric_limits<double>::quiet_NaN();  // RMS distance (frame) or |force error| (sample), scene units
+  int points = 0;                                           // points within maxDistance (frames)
+  bool contact = false;                                     // the simulated instrument touched the tissue then
+};
+
+struct ReplayScore {
+  enum class Status { Ok, Diverged, Timeout };
+  Status status = Status::Ok;
+  std::string reason;  // why, when not Ok
+  static constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  double metric = nan, metricSe = nan, cloudTerm = nan, forceTerm = nan;
+  // Mean per-frame RMS distance (scene length units): all frames, frames in contact, frames without.
+  double cloudRms = nan, cloudRmsContact = nan, cloudRmsFree = nan;
+  // RMS of the force error (scene force units): all samples, in contact, without. NaN without a wrench.
+  double forceRms = nan, forceRmsContact = nan, forceRmsFree = nan;
+  std::vector<FrameScore> frames, samples;
+  int steps = 0;
+  double wallSeconds = 0;
+  bool ok() const { return status == Status::Ok; }
+};
+const char* statusName(ReplayScore::Status s);  // "ok", "diverged", "timeout"
+
+// Builds the scene from `desc` (a replay description), runs it over the dataset's time span and
+// scores it. Input errors of the scene throw viscera::Error; divergence and timeouts are results.
+ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const ReplayOptions& options = {});
+
+}  // namespace viscera::study

@@ -1,0 +1,135 @@
+// `viscera dataset` and `viscera search` as a user runs them: outputs, resuming, merging shards,
+// and bad input that exits 2 with a clear message and writes nothing.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "tests/apps/cli_helpers.h"
+
+namespace viscera_test {
+namespace {
+
+std::string blockScene() { return sourcePath("tests/data/study/block.xml"); }
+
+class SearchCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir("viscera_search_cli");
+    const RunResult r = runViscera({"dataset", "make", blockScene(), "--out", *dir_ / "data", "--time", "2", "--set",
+                                    "block/fem.youngModulus=3.2 kPa", "--position", "20 -200 250", "--look-at",
+                                    "20 10 10", "--force-noise", "0.001 N", "--quiet"});
+    ASSERT_EQ(r.rc, 0) << r;
+  }
+  static void TearDownTestSuite() { delete dir_; }
+  static std::string data() { return *dir_ / "data"; }
+  TempDir tmp_;
+  static TempDir* dir_;
+};
+TempDir* SearchCli::dir_ = nullptr;
+
+TEST_F(SearchCli, DatasetMakeWritesACompleteDatasetThatChecks) {
+  for (const char* f : {"trajectory.csv", "camera/index.csv", "camera_to_scene.txt", "wrench.csv", "README.txt"})
+    EXPECT_TRUE(fs::exists(fs::path(data()) / f)) << f;
+  EXPECT_FALSE(fs::exists(fs::path(data()) / "block.pvd"));  // the scene's exporter is not run
+  const RunResult r = runViscera({"dataset", "check", data()});
+  EXPECT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.out.find("camera: 21 frames"), std::string::npos) << r;
+  EXPECT_NE(r.out.find("wrench: 200 samples"), std::string::npos) << r;
+}
+
+TEST_F(SearchCli, DatasetMakeNeverWritesIntoAnExistingFolder) {
+  fs::create_directories(tmp_.path() / "taken");
+  std::ofstream(tmp_.path() / "taken" / "keep.txt") << "mine";
+  const RunResult r = runViscera({"dataset", "make", blockScene(), "--out", tmp_ / "taken", "--time", "0.1", "--position",
+                                  "20 -200 250", "--look-at", "20 10 10"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("already exists"), std::string::npos) << r;
+  EXPECT_EQ(slurp(tmp_.path() / "taken" / "keep.txt"), "mine");
+}
+
+TEST_F(SearchCli, DatasetCheckRejectsAFolderThatIsNotADataset) {
+  fs::create_directories(tmp_.path() / "empty");
+  const RunResult r = runViscera({"dataset", "check", tmp_ / "empty"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("trajectory.csv: missing"), std::string::npos) << r;
+}
+
+TEST_F(SearchCli, SearchWritesResultsSummaryAndPlot) {
+  const RunResult r = runViscera({"search", blockScene(), "--data", data(), "--param",
+                                  "block/fem.youngModulus=log:1kPa:10kPa:3", "--out", tmp_ / "s", "--jobs", "2"});
+  ASSERT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.err.find("[3/3]"), std::string::npos) << r;
+  const auto j = nlohmann::json::parse(slurp(tmp_.path() / "s" / "summary.json"));
+  EXPECT_NEAR(j["best"]["block/fem.youngModulus"].get<double>(), 3162.28, 0.01);
+  EXPECT_TRUE(j["bracket"]["block/fem.youngModulus"]["identifiable"].get<bool>());
+  EXPECT_EQ(j["candidates"]["ok"].get<int>(), 3);
+  EXPECT_EQ(j["units"].get<std::string>(), "mm g s");
+  EXPECT_GT(fs::file_size(tmp_.path() / "s" / "search.png"), 1000u);
+  // results.csv: the identity line, the header, three rows.
+  const std::string csv = slurp(tmp_.path() / "s" / "results.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5) << csv;
+
+  // Run again: nothing is redone. With another spec into the same folder: refused, untouched.
+  const RunResult again = runViscera({"search", blockScene(), "--data", data(), "--param",
+                                      "block/fem.youngModulus=log:1kPa:10kPa:3", "--out", tmp_ / "s"});
+  EXPECT_EQ(again.rc, 0) << again;
+  EXPECT_NE(again.err.find("3 already in results.csv"), std::string::npos) << again;
+  const RunResult other = runViscera({"search", blockScene(), "--data", data(), "--param",
+                                      "block/fem.youngModulus=log:1kPa:10kPa:4", "--out", tmp_ / "s"});
+  EXPECT_EQ(other.rc, 2) << other;
+  EXPECT_NE(other.err.find("another search"), std::string::npos) << other;
+  EXPECT_EQ(slurp(tmp_.path() / "s" / "results.csv"), csv);
+}
+
+TEST_F(SearchCli, ShardsMergeIntoTheWholeGrid) {
+  const std::vector<std::string> base = {"search", blockScene(), "--data", data(), "--param",
+                                         "block/fem.youngModulus=log:1kPa:10kPa:3", "--no-plot", "--quiet"};
+  auto with = [&](std::vector<std::string> extra) {
+    auto a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return runViscera(a);
+  };
+  ASSERT_EQ(with({"--out", tmp_ / "whole"}).rc, 0);
+  ASSERT_EQ(with({"--out", tmp_ / "s0", "--shard", "0/2"}).rc, 0);
+  ASSERT_EQ(with({"--out", tmp_ / "s1", "--shard", "1/2"}).rc, 0);
+  const RunResult m = runViscera({"search", "merge", tmp_ / "s0", tmp_ / "s1", "--out", tmp_ / "merged", "--no-plot"});
+  ASSERT_EQ(m.rc, 0) << m;
+  const auto whole = nlohmann::json::parse(slurp(tmp_.path() / "whole" / "summary.json"));
+  const auto merged = nlohmann::json::parse(slurp(tmp_.path() / "merged" / "summary.json"));
+  EXPECT_EQ(whole["best"], merged["best"]);
+  EXPECT_EQ(whole["metric"], merged["metric"]);
+  EXPECT_EQ(merged["candidates"]["total"].get<int>(), 3);
+  EXPECT_FALSE(nlohmann::json::parse(slurp(tmp_.path() / "s0" / "summary.json"))["complete"].get<bool>());
+}
+
+TEST_F(SearchCli, BadInputExitsTwoAndWritesNothing) {
+  struct Case {
+    std::vector<std::string> args;
+    const char* message;
+  };
+  const std::vector<Case> cases = {
+      {{"--param", "block/fem.nothing=1,2"}, "has no attribute 'nothing'"},
+      {{"--param", "nowhere.youngModulus=1,2"}, "nowhere"},
+      {{"--param", "block/fem.youngModulus=log:1:2"}, "log:LO:HI:N"},
+      {{"--param", "block/fem.youngModulus=lin:1kPa:2kPa:3", "--shard", "2/2"}, "--shard"},
+      {{"--param", "block/fem.youngModulus=refine:1kPa:2kPa", "--shard", "0/2"}, "cannot be split"},
+      {{"--param", "block/fem.youngModulus=1,2", "--param", "fem.poissonRatio=refine-lin:0.3:0.4"}, "cannot be mixed"},
+  };
+  for (const auto& c : cases) {
+    std::vector<std::string> args = {"search", blockScene(), "--data", data(), "--out", tmp_ / "out"};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    const RunResult r = runViscera(args);
+    EXPECT_EQ(r.rc, 2) << r;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.message << "\n" << r;
+    EXPECT_FALSE(fs::exists(tmp_ / "out")) << c.message;
+  }
+  fs::create_directories(tmp_.path() / "nodata");
+  const RunResult r = runViscera({"search", blockScene(), "--data", tmp_ / "nodata", "--param",
+                                  "block/fem.youngModulus=1,2", "--out", tmp_ / "out2"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("trajectory.csv: missing"), std::string::npos) << r;
+  EXPECT_FALSE(fs::exists(tmp_ / "out2"));
+}
+
+}  // namespace
+}  // namespace viscera_test
