@@ -198,6 +198,41 @@ std::string field(std::string s) {
   return s;
 }
 
+// Candidates on `jobs` threads of this process, each run in its own arena.
+class ThreadExecutor : public CandidateExecutor {
+ public:
+  explicit ThreadExecutor(int jobs) : jobs_(jobs) {}
+  void run(const std::vector<std::vector<double>>& todo, const Evaluate& evaluate, const Done& done) override {
+    std::atomic<size_t> next{0};
+    std::mutex mutex;
+    std::exception_ptr failure;
+    auto work = [&] {
+      for (;;) {
+        const size_t i = next++;
+        if (i >= todo.size()) return;
+        try {
+          CandidateResult r = evaluate(todo[i]);
+          std::lock_guard<std::mutex> lock(mutex);
+          done(std::move(r));
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!failure) failure = std::current_exception();
+          next = todo.size();
+        }
+      }
+    };
+    const int jobs = std::max(1, std::min<int>(jobs_, static_cast<int>(todo.size())));
+    std::vector<std::thread> pool;
+    for (int j = 1; j < jobs; ++j) pool.emplace_back(work);
+    work();
+    for (auto& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+  }
+
+ private:
+  int jobs_;
+};
+
 // Runs candidates and keeps the results table.
 class Runner {
  public:
@@ -228,28 +263,7 @@ class Runner {
     if (progress_) progress_->stage(stage, static_cast<int>(todo.size()) + already, already);
     total_ = static_cast<int>(todo.size());
     finished_ = 0;
-    std::atomic<size_t> next{0};
-    std::exception_ptr failure;
-    auto work = [&] {
-      for (;;) {
-        const size_t i = next++;
-        if (i >= todo.size()) return;
-        try {
-          CandidateResult r = evaluate(stage, todo[i]);
-          record(std::move(r));
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(mutex_);
-          if (!failure) failure = std::current_exception();
-          next = todo.size();
-        }
-      }
-    };
-    const int jobs = std::max(1, std::min<int>(options_.jobs, static_cast<int>(todo.size())));
-    std::vector<std::thread> pool;
-    for (int j = 1; j < jobs; ++j) pool.emplace_back(work);
-    work();
-    for (auto& t : pool) t.join();
-    if (failure) std::rethrow_exception(failure);
+    execute(stage, todo);
   }
 
   // One candidate, from the table when it was run before.
@@ -257,29 +271,25 @@ class Runner {
     auto it = done_.find(key(values));
     if (it != done_.end()) return rows_[it->second];
     total_ = 0;  // a minimiser's evaluations are not known in advance
-    record(evaluate(stage, values));
+    execute(stage, {values});
     return rows_[done_.at(key(values))];
   }
 
  private:
-  CandidateResult evaluate(const std::string& stage, const std::vector<double>& values) const {
-    SceneDesc desc = scene_;
-    for (size_t j = 0; j < params_.size(); ++j)
-      desc.set(params_[j].address, exact(values[j]), SourceLoc{"--param " + params_[j].address});
-    try {
-      return fromScore(stage, values, replay(desc, data_, options_.replay));
-    } catch (const Error&) {
-      throw;  // an input error: the same for every candidate, so the search stops
-    } catch (const std::exception& e) {
-      ReplayScore s;
-      s.status = ReplayScore::Status::Diverged;
-      s.reason = std::string("failed: ") + e.what();
-      return fromScore(stage, values, s);
-    }
+  // Runs candidates on the executor given, or on `jobs` threads.
+  void execute(const std::string& stage, const std::vector<std::vector<double>>& todo) {
+    auto evaluate = [&](const std::vector<double>& v) { return evaluateCandidate(scene_, data_, params_, options_.replay, v); };
+    auto done = [&](CandidateResult r) {
+      r.stage = stage;
+      record(std::move(r));
+    };
+    if (options_.executor) options_.executor->run(todo, evaluate, done);
+    else threads_.run(todo, evaluate, done);
   }
 
   void record(CandidateResult r) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (done_.count(key(r.values))) return;
     done_[key(r.values)] = rows_.size();
     rows_.push_back(std::move(r));
     writeFileAtomic(path_, formatResults(rows_, params_, identity_));
@@ -296,6 +306,7 @@ class Runner {
   std::vector<CandidateResult> rows_;
   std::map<std::string, size_t> done_;
   std::mutex mutex_;
+  ThreadExecutor threads_{options_.jobs};
   int total_ = 0, finished_ = 0;
 };
 
@@ -360,6 +371,24 @@ void minimise(Runner& runner, const std::vector<ParamSpec>& params, const Search
 }
 
 }  // namespace
+
+CandidateResult evaluateCandidate(const SceneDesc& replayScene, const PreparedDataset& data,
+                                  const std::vector<ParamSpec>& params, const ReplayOptions& options,
+                                  const std::vector<double>& values) {
+  SceneDesc desc = replayScene;
+  for (size_t j = 0; j < params.size(); ++j)
+    desc.set(params[j].address, exact(values[j]), SourceLoc{"--param " + params[j].address});
+  try {
+    return fromScore("", values, replay(desc, data, options));
+  } catch (const Error&) {
+    throw;  // an input error: the same for every candidate, so the search stops
+  } catch (const std::exception& e) {
+    ReplayScore s;
+    s.status = ReplayScore::Status::Diverged;
+    s.reason = std::string("failed: ") + e.what();
+    return fromScore("", values, s);
+  }
+}
 
 double toAxis(const ParamSpec& p, double v) { return p.scale == Scale::Log ? std::log10(v) : v; }
 double fromAxis(const ParamSpec& p, double u) { return p.scale == Scale::Log ? std::pow(10.0, u) : u; }
@@ -447,6 +476,30 @@ std::string formatResult(const CandidateResult& r) {
   return s.str();
 }
 
+CandidateResult parseResult(const std::string& row, size_t d) {
+  const auto f = split(row, ',');
+  if (f.size() != 1 + d + kColumns.size())
+    throw std::invalid_argument("expected " + std::to_string(1 + d + kColumns.size()) + " fields, got " +
+                                std::to_string(f.size()));
+  CandidateResult r;
+  r.stage = f[0];
+  for (size_t j = 0; j < d; ++j) r.values.push_back(std::stod(f[1 + j]));
+  const std::string st = f[1 + d];
+  if (st == "ok") r.status = ReplayScore::Status::Ok;
+  else if (st == "diverged") r.status = ReplayScore::Status::Diverged;
+  else if (st == "timeout") r.status = ReplayScore::Status::Timeout;
+  else throw std::invalid_argument("status '" + st + "'");
+  double* nums[] = {&r.metric, &r.metricSe, &r.cloudTerm, &r.forceTerm, &r.cloudRms, &r.cloudRmsContact,
+                    &r.cloudRmsFree, &r.forceRms, &r.forceRmsContact, &r.forceRmsFree};
+  for (size_t i = 0; i < 10; ++i) *nums[i] = std::stod(f[2 + d + i]);
+  r.frames = std::stoi(f[12 + d]);
+  r.samples = std::stoi(f[13 + d]);
+  r.steps = std::stoi(f[14 + d]);
+  r.wallSeconds = std::stod(f[15 + d]);
+  r.reason = f[16 + d];
+  return r;
+}
+
 std::string formatResults(const std::vector<CandidateResult>& rows, const std::vector<ParamSpec>& params,
                           const std::string& identity) {
   std::string out = "# search " + identity + "\n" + resultsHeader(params) + "\n";
@@ -478,29 +531,8 @@ std::vector<CandidateResult> readResults(const std::string& path, const std::vec
       continue;
     }
     if (trim(line).empty()) continue;
-    const auto f = split(line, ',');
-    const size_t d = params.size();
-    if (f.size() != 1 + d + kColumns.size())
-      throw Error(SourceLoc{path, n}, "expected " + std::to_string(1 + d + kColumns.size()) + " fields, got " +
-                                          std::to_string(f.size()));
     try {
-      CandidateResult r;
-      r.stage = f[0];
-      for (size_t j = 0; j < d; ++j) r.values.push_back(std::stod(f[1 + j]));
-      const std::string st = f[1 + d];
-      if (st == "ok") r.status = ReplayScore::Status::Ok;
-      else if (st == "diverged") r.status = ReplayScore::Status::Diverged;
-      else if (st == "timeout") r.status = ReplayScore::Status::Timeout;
-      else throw std::invalid_argument("status '" + st + "'");
-      double* nums[] = {&r.metric, &r.metricSe, &r.cloudTerm, &r.forceTerm, &r.cloudRms, &r.cloudRmsContact,
-                        &r.cloudRmsFree, &r.forceRms, &r.forceRmsContact, &r.forceRmsFree};
-      for (size_t i = 0; i < 10; ++i) *nums[i] = std::stod(f[2 + d + i]);
-      r.frames = std::stoi(f[12 + d]);
-      r.samples = std::stoi(f[13 + d]);
-      r.steps = std::stoi(f[14 + d]);
-      r.wallSeconds = std::stod(f[15 + d]);
-      r.reason = f[16 + d];
-      rows.push_back(std::move(r));
+      rows.push_back(parseResult(line, params.size()));
     } catch (const std::exception& e) {
       throw Error(SourceLoc{path, n}, std::string("malformed row (") + e.what() + ")");
     }

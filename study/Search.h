@@ -47,6 +47,20 @@ ParamSpec parseParam(const std::string& argument, const SceneDesc& scene);
 double toAxis(const ParamSpec& p, double v);
 double fromAxis(const ParamSpec& p, double u);
 
+struct CandidateResult;
+
+// Where candidates run: threads of this process (the default), or the ranks of an MPI job
+// (study/Distributed.h). Results do not depend on where.
+class CandidateExecutor {
+ public:
+  virtual ~CandidateExecutor() = default;
+  using Evaluate = std::function<CandidateResult(const std::vector<double>&)>;
+  using Done = std::function<void(CandidateResult)>;
+  // Evaluates every candidate (parameter values), calling `done` with each result as it
+  // finishes, one call at a time. An input error of a candidate is rethrown after the others stop.
+  virtual void run(const std::vector<std::vector<double>>& candidates, const Evaluate& evaluate, const Done& done) = 0;
+};
+
 struct SearchOptions {
   ReplayOptions replay;           // score options, time budget (threads is per candidate)
   int jobs = 1;                   // candidates run at once (threads)
@@ -54,6 +68,7 @@ struct SearchOptions {
   double tolerance = 1e-3;        // minimiser: relative tolerance on the parameters
   int maxEvaluations = 40;        // minimiser: evaluations at most
   int finePoints = 0;             // points per parameter of the finer grid (0: 7 for one parameter, 5 for several)
+  CandidateExecutor* executor = nullptr;  // null: `jobs` threads here
 };
 
 // One finished candidate, as a results.csv row.
@@ -71,11 +86,19 @@ struct CandidateResult {
   bool ok() const { return status == ReplayScore::Status::Ok; }
 };
 
+// Builds and replays one candidate: the scene (a replay description) with each parameter set to
+// its value. Divergence, timeouts and numerical failures are results; input errors throw.
+CandidateResult evaluateCandidate(const SceneDesc& replayScene, const PreparedDataset& data,
+                                  const std::vector<ParamSpec>& params, const ReplayOptions& options,
+                                  const std::vector<double>& values);
+
 // The results table: a first line "# search <identity>" naming the scene, dataset and scoring, a
 // header, then one row per candidate. Values are written with 17 significant digits, so that a
 // resumed search finds its candidates exactly.
 std::string resultsHeader(const std::vector<ParamSpec>& params);
 std::string formatResult(const CandidateResult& r);
+// One row back (for `params` parameters); std::invalid_argument for a malformed row.
+CandidateResult parseResult(const std::string& row, size_t params);
 // Reads a results table written for `params`; Error naming the file and line for another search's
 // table (a different identity or header) or a malformed row.
 std::vector<CandidateResult> readResults(const std::string& path, const std::vector<ParamSpec>& params,

@@ -24,6 +24,7 @@
 #include "core/Units.h"
 #include "engine/Run.h"
 #include "io/scene/SceneReader.h"
+#include "study/Distributed.h"
 #include "study/Search.h"
 
 namespace viscera {
@@ -195,7 +196,30 @@ int search(const SearchArgs& a) {
   so.useWrench = !a.noWrench;
 
   study::validateSearch(params, o);
+  // Under mpirun every rank reads the same inputs; rank 0 runs the search, the others evaluate.
+  std::unique_ptr<study::MpiSession> mpi;
+  if (study::launchedByMpi()) {
+    mpi = std::make_unique<study::MpiSession>();
+    o.replay.threads = 1;  // the ranks are the parallelism
+  }
   const study::PreparedDataset data = study::prepareDataset(a.data, so);
+  if (mpi && mpi->rank() != 0) {
+    const SceneDesc desc = study::replayDescription(scene, data.data);
+    mpi->serve([&](const std::vector<double>& v) { return study::evaluateCandidate(desc, data, params, o.replay, v); });
+    return kExitOk;
+  }
+  // Whatever ends rank 0's search, the other ranks are told to stop.
+  struct StopWorkers {
+    const study::MpiSession* mpi;
+    ~StopWorkers() {
+      if (mpi) mpi->stopWorkers();
+    }
+  } stopWorkers{mpi.get()};
+  std::unique_ptr<study::CandidateExecutor> coordinator;
+  if (mpi) {
+    coordinator = mpi->coordinator();
+    o.executor = coordinator.get();
+  }
   for (const auto& n : data.data.notes)
     if (!a.quiet) std::cerr << n << "\n";
 
@@ -226,7 +250,8 @@ int search(const SearchArgs& a) {
   if (!a.quiet)
     std::cerr << "search: " << params.size() << " parameter" << (params.size() == 1 ? "" : "s") << ", dataset "
               << data.data.frames.size() << " frames" << (data.scoresWrench() ? " and a wrench" : " (no wrench scored)")
-              << ", " << a.jobs << " job" << (a.jobs == 1 ? "" : "s") << "\n";
+              << ", " << (mpi ? mpi->size() : a.jobs) << (mpi ? " MPI rank" : " job") << ((mpi ? mpi->size() : a.jobs) == 1 ? "" : "s")
+              << "\n";
   ProgressLog progress(params, a.quiet);
   const study::SearchReport rep = study::runSearch(scene, data, params, o, results.string(), id.str(), &progress);
 

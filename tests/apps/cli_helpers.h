@@ -47,9 +47,10 @@ inline std::ostream& operator<<(std::ostream& o, const RunResult& r) {
 }
 
 // Runs `viscera <args...>` (each argument quoted) and captures everything.
-inline RunResult runViscera(const std::vector<std::string>& args) {
+// `prefix` goes before the binary (a launcher such as "mpirun -n 2", with its environment).
+inline RunResult runViscera(const std::vector<std::string>& args, const std::string& prefix = "") {
   TempDir io;
-  std::string cmd = shellQuote(VISCERA_BINARY);
+  std::string cmd = prefix + shellQuote(VISCERA_BINARY);
   for (const auto& a : args) {
     cmd += ' ';
     cmd += shellQuote(a);

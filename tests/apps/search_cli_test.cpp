@@ -102,6 +102,36 @@ TEST_F(SearchCli, ShardsMergeIntoTheWholeGrid) {
   EXPECT_FALSE(nlohmann::json::parse(slurp(tmp_.path() / "s0" / "summary.json"))["complete"].get<bool>());
 }
 
+// Rank 0 hands candidates to both ranks (itself included); the table is that of one thread.
+TEST_F(SearchCli, MpiRanksGiveTheSameTableAsThreads) {
+  if (!VISCERA_HAS_MPI) GTEST_SKIP() << "built without MPI";
+  const std::vector<std::string> args = {"search", blockScene(), "--data", data(), "--param",
+                                         "block/fem.youngModulus=log:1kPa:10kPa:4", "--no-plot", "--quiet", "--out"};
+  auto with = [&](const std::string& out, const std::string& prefix) {
+    auto a = args;
+    a.push_back(out);
+    return runViscera(a, prefix);
+  };
+  ASSERT_EQ(with(tmp_ / "threads", "").rc, 0);
+  // Open MPI refuses root without these (containers, CI).
+  const RunResult r = with(tmp_ / "mpi", "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 --oversubscribe ");
+  ASSERT_EQ(r.rc, 0) << r;
+  // Every field up to the figures (stage, value, status, metric ... force_rms_free): not the wall time.
+  auto table = [&](const std::string& dir) {
+    std::vector<std::string> rows;
+    for (const auto& l : lines(slurp(fs::path(dir) / "results.csv"))) {
+      size_t end = 0;
+      for (int f = 0; f < 13 && end != std::string::npos; ++f) end = l.find(',', end + 1);
+      rows.push_back(l.substr(0, end));
+    }
+    std::sort(rows.begin(), rows.end());
+    return rows;
+  };
+  const auto a = table(tmp_ / "threads"), b = table(tmp_ / "mpi");
+  EXPECT_EQ(a.size(), 6u);
+  EXPECT_EQ(a, b);
+}
+
 TEST_F(SearchCli, BadInputExitsTwoAndWritesNothing) {
   struct Case {
     std::vector<std::string> args;
