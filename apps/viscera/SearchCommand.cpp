@@ -5,6 +5,7 @@
 #include "apps/viscera/SearchCommand.h"
 
 #include <CLI/CLI.hpp>
+#include <tbb/info.h>
 
 #include <algorithm>
 #include <chrono>
@@ -187,7 +188,7 @@ int search(const SearchArgs& a) {
   o.finePoints = a.finePoints;
   o.replay.timeBudget = a.timeBudget;
   // The cores are shared among the jobs; each candidate's result does not depend on its threads.
-  o.replay.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / std::max(1, a.jobs));
+  o.replay.threads = std::max(1, tbb::info::default_concurrency() / std::max(1, a.jobs));
   study::ScoreOptions& so = o.replay.score;
   so.maxPoints = a.points;
   if (a.maxDistance > 0) so.maxDistance = a.maxDistance;

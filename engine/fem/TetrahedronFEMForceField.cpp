@@ -119,17 +119,30 @@ void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor
         for (int j = 0; j < 4; ++j) K.block(slots_[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
       return;
     }
-    // Blocks -V times the law's coupling of the rotated gradients h = R^T G.
+    // Blocks -V times the law's coupling of the rotated gradients h = R^T G (Lame::coupling,
+    // written out: this loop is a third of a step):
+    //   B(r, c) = a (lambda h_i[r] h_j[c] + mu h_j[r] h_i[c] + mu (g_i . g_j) delta_rc).
     const fem::ElementRest& r = rest_[e];
     const Mat34 h = rot_[e].transpose() * r.G;
-    const double a = -kFactor * r.volume;
-    const Eigen::Matrix4d gg = r.G.transpose() * r.G;
+    const double a = -kFactor * r.volume, la = a * r.lame.lambda, ma = a * r.lame.mu;
+    double* values = K.values();
+    const auto& slot = slots_[e];
     // Block (j, i) is the transpose of block (i, j): compute the upper half only.
     for (int i = 0; i < 4; ++i)
       for (int j = i; j < 4; ++j) {
-        const Eigen::Matrix3d B = a * r.lame.coupling(h.col(i), h.col(j), gg(i, j));
-        K.block(slots_[e][4 * i + j]) += B;
-        if (j != i) K.block(slots_[e][4 * j + i]) += B.transpose();
+        double B[9];  // column-major, as the matrix stores its blocks
+        for (int c = 0; c < 3; ++c)
+          for (int rr = 0; rr < 3; ++rr) B[3 * c + rr] = la * h(rr, i) * h(c, j) + ma * h(rr, j) * h(c, i);
+        const double d = ma * r.G.col(i).dot(r.G.col(j));
+        B[0] += d;
+        B[4] += d;
+        B[8] += d;
+        double* kij = values + 9 * static_cast<size_t>(slot[4 * i + j]);
+        for (int k = 0; k < 9; ++k) kij[k] += B[k];
+        if (j == i) continue;
+        double* kji = values + 9 * static_cast<size_t>(slot[4 * j + i]);
+        for (int c = 0; c < 3; ++c)
+          for (int rr = 0; rr < 3; ++rr) kji[3 * c + rr] += B[3 * rr + c];
       }
   });
 }
