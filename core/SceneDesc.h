@@ -20,6 +20,7 @@ struct ElementDesc {
   SourceLoc loc;
   std::vector<AttrDesc> attrs;
   std::vector<ElementDesc> children;
+  std::string comment;  // written before the element when the description is written out (io/scene/SceneWriter.h)
 
   const AttrDesc* find(const std::string& name) const;
   // Sets (or adds) an attribute. Messages about its value name `origin` when given (e.g.

@@ -44,13 +44,13 @@ std::string seconds(double t) { return formatNumber(t) + " s"; }
 double Dataset::start() const {
   double s = frames.empty() ? trajectory.start() : frames.front().time;
   if (wrench && wrench->size() > 0) s = std::min(s, wrench->t.front());
-  return std::max(s, trajectory.start());
+  return s;
 }
 
 double Dataset::end() const {
   double e = frames.empty() ? trajectory.end() : frames.back().time;
   if (wrench && wrench->size() > 0) e = std::max(e, wrench->t.back());
-  return std::min(e, trajectory.end());
+  return e;
 }
 
 WrenchSeries readWrenchCsv(const std::string& path) {

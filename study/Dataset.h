@@ -41,8 +41,8 @@ struct Dataset {
   std::optional<WrenchSeries> wrench;
   std::vector<std::string> notes;             // oddities that are not errors (e.g. a frame outside the trajectory)
 
-  // The time span the dataset covers: from the first to the last measurement (frame or wrench
-  // sample), within the trajectory.
+  // The time span of the measurements: from the first to the last frame or wrench sample (the
+  // instrument is held at its first or last pose outside the trajectory's span).
   double start() const;
   double end() const;
 };

@@ -2,17 +2,21 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <memory>
 
 #include "builtin/Builtins.h"
+#include "core/Attributes.h"
 #include "core/Error.h"
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "core/Text.h"
+#include "core/Units.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
+#include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "observation/CloudDistance.h"
@@ -66,8 +70,9 @@ double varianceOfMean(const std::vector<double>& v) {
 // against the state interpolated between the step's start and end.
 class Scorer : public RunObserver {
  public:
-  Scorer(Scene& scene, const PreparedDataset& data, const ReplayOptions& o, RigidObject* tool)
+  Scorer(Scene& scene, const PreparedDataset& data, const ReplayOptions& o, RigidObject* tool, double offset)
       : data_(data), options_(o), tool_(tool), surfaces_(obs::tissueSurfaces(scene)) {
+    offset_ = offset;
     if (surfaces_.empty())
       throw Error(SourceLoc{scene.file()}, "the scene has no deformable body with tetrahedra to compare the clouds with");
     int nodes = 0, tris = 0;
@@ -89,6 +94,8 @@ class Scorer : public RunObserver {
     prev_.resize(3, nodes);
     cur_.resize(3, nodes);
     deadline_ = o.timeBudget > 0 ? now() + o.timeBudget : 0;
+    const auto spheres = scene.all<SphereCollisionModel>();
+    if (!spheres.empty()) sphere_ = spheres.front();
   }
 
   void begin(const Simulation& sim, int) override {
@@ -96,9 +103,9 @@ class Scorer : public RunObserver {
     tPrev_ = sim.time();
     fPrev_ = tool_ ? tool_->force : Eigen::Vector3d::Zero();
     // Measurements at or before the start see the initial state.
-    while (nextFrame_ < data_.data.frames.size() && data_.data.frames[nextFrame_].time <= tPrev_) scoreFrame(prev_, false);
+    while (nextFrame_ < data_.data.frames.size() && frameTime(nextFrame_) <= tPrev_) scoreFrame(prev_, false);
     if (data_.scoresWrench())
-      while (nextSample_ < static_cast<size_t>(data_.data.wrench->size()) && data_.data.wrench->t[nextSample_] <= tPrev_)
+      while (nextSample_ < static_cast<size_t>(data_.data.wrench->size()) && sampleTime(nextSample_) <= tPrev_)
         scoreSample(fPrev_, false);
   }
 
@@ -107,15 +114,16 @@ class Scorer : public RunObserver {
     gather(cur_);
     const bool contact = tool_ && tool_->contacts > 0;
     const Eigen::Vector3d f = tool_ ? tool_->force : Eigen::Vector3d::Zero();
+    force_ = f.norm();
     const double h = t - tPrev_;
-    while (nextFrame_ < data_.data.frames.size() && data_.data.frames[nextFrame_].time <= t) {
-      const double a = h > 0 ? (data_.data.frames[nextFrame_].time - tPrev_) / h : 1.0;
+    while (nextFrame_ < data_.data.frames.size() && frameTime(nextFrame_) <= t) {
+      const double a = h > 0 ? (frameTime(nextFrame_) - tPrev_) / h : 1.0;
       mix_ = (1 - a) * prev_ + a * cur_;
       scoreFrame(mix_, contact);
     }
     if (data_.scoresWrench())
-      while (nextSample_ < static_cast<size_t>(data_.data.wrench->size()) && data_.data.wrench->t[nextSample_] <= t) {
-        const double a = h > 0 ? (data_.data.wrench->t[nextSample_] - tPrev_) / h : 1.0;
+      while (nextSample_ < static_cast<size_t>(data_.data.wrench->size()) && sampleTime(nextSample_) <= t) {
+        const double a = h > 0 ? (sampleTime(nextSample_) - tPrev_) / h : 1.0;
         scoreSample((1 - a) * fPrev_ + a * f, contact);
       }
     std::swap(prev_, cur_);
@@ -132,6 +140,10 @@ class Scorer : public RunObserver {
   std::vector<FrameScore> frames, samples;
 
  private:
+  // Measurement times on the scene's clock.
+  double frameTime(size_t k) const { return data_.data.frames[k].time - offset_; }
+  double sampleTime(size_t j) const { return data_.data.wrench->t[j] - offset_; }
+
   void gather(Eigen::Matrix3Xd& x) const {
     int off = 0;
     for (const auto& s : surfaces_) {
@@ -143,23 +155,56 @@ class Scorer : public RunObserver {
     const size_t k = nextFrame_++;
     FrameScore fs;
     fs.time = data_.data.frames[k].time;
+    if (fs.time < options_.from || fs.time > options_.to) return;
     fs.contact = contact;
-    const Eigen::Matrix3Xd& cloud = data_.clouds[k];
-    if (cloud.cols() > 0) {
+    fs.force = force_;
+    const Eigen::Matrix3Xd& stored = data_.clouds[k];
+    const Eigen::Matrix3Xd* cloud = &stored;
+    if (options_.cloudCorrection) {
+      corrected_ = *options_.cloudCorrection * stored.colwise().homogeneous();
+      cloud = &corrected_;
+    }
+    if (cloud->cols() > 0) {
       distance_->setSurface(x);
-      distance_->measure(cloud, result_);
+      distance_->measure(*cloud, result_);
       fs.points = result_.stats.count;
       if (fs.points > 0) fs.value = result_.stats.rms;
+      if (options_.regions) fs.regions = regions(x, *cloud);
     }
-    frames.push_back(fs);
+    frames.push_back(std::move(fs));
   }
   void scoreSample(const Eigen::Vector3d& simulated, bool contact) {
     const size_t j = nextSample_++;
     FrameScore s;
     s.time = data_.data.wrench->t[j];
+    if (s.time < options_.from || s.time > options_.to) return;
     s.contact = contact;
+    s.force = simulated.norm();
     s.value = (simulated - data_.data.wrench->force[j]).norm();
     samples.push_back(s);
+  }
+  // The frame's residuals per region (result_ holds its distances).
+  std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) const {
+    std::vector<RegionResiduals> out(kRegionCount);
+    const auto& tris = distance_->triangles();
+    for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
+      if (!result_.within[static_cast<size_t>(i)]) continue;
+      const int t = result_.nearest[static_cast<size_t>(i)];
+      const Eigen::Vector3d n =
+          (x.col(tris(1, t)) - x.col(tris(0, t))).cross(x.col(tris(2, t)) - x.col(tris(0, t)));
+      int axis = 0;
+      n.cwiseAbs().maxCoeff(&axis);
+      const int face = axis == 2 ? (n.z() > 0 ? kTop : kBottom) : axis == 0 ? (n.x() > 0 ? kXMax : kXMin) : (n.y() > 0 ? kYMax : kYMin);
+      const Eigen::Vector3d closest = cloud.col(i) + result_.residual.col(i);
+      const bool near = sphere_ && (closest - sphere_->centre()).norm() < 3 * sphere_->radius();
+      const double d = result_.distance[static_cast<size_t>(i)], sd = result_.signedDistance[static_cast<size_t>(i)];
+      for (int r : {face, static_cast<int>(near ? kNearInstrument : kAwayFromInstrument)}) {
+        out[r].count += 1;
+        out[r].sumSquared += d * d;
+        out[r].sumSigned += sd;
+      }
+    }
+    return out;
   }
 
   const PreparedDataset& data_;
@@ -168,10 +213,13 @@ class Scorer : public RunObserver {
   std::vector<obs::TissueSurface> surfaces_;
   std::unique_ptr<obs::CloudDistance> distance_;
   obs::DistanceResult result_;
-  Eigen::Matrix3Xd prev_, cur_, mix_;
+  Eigen::Matrix3Xd prev_, cur_, mix_, corrected_;
+  const SphereCollisionModel* sphere_ = nullptr;
+  double force_ = 0;
   Eigen::Vector3d fPrev_ = Eigen::Vector3d::Zero();
   double tPrev_ = 0, deadline_ = 0;
   size_t nextFrame_ = 0, nextSample_ = 0;
+  double offset_ = 0;
 };
 
 // The rigid body the scene's TrajectoryDriver moves.
@@ -184,7 +232,30 @@ RigidObject* replayedInstrument(Scene& scene) {
   return nullptr;
 }
 
+// The scene's start time (the root's `time`, in its units; 0 when not given).
+double sceneStartTime(const SceneDesc& scene) {
+  const AttrDesc* t = scene.root.find("time");
+  if (!t) return 0;
+  const AttrDesc* u = scene.root.find("units");
+  AttrValue v;
+  try {
+    parseAttrText(*Registry::nodeSpec().find("time"), t->value, u ? UnitSystem::parse(u->value) : UnitSystem(), v);
+  } catch (const std::invalid_argument& e) {
+    throw Error(t->loc, std::string("Node.time: ") + e.what());
+  }
+  return v.nums.at(0);
+}
+
+// Dataset time minus scene time: the dataset's clock starts with its trajectory, which starts
+// with the scene, so that a capture stamped with absolute times replays from the scene's start.
+double clockOffset(const SceneDesc& scene, const Dataset& data) { return data.trajectory.start() - sceneStartTime(scene); }
+
 }  // namespace
+
+const char* regionName(int region) {
+  static const char* const names[] = {"top", "bottom", "x-", "x+", "y-", "y+", "near instrument", "away"};
+  return region >= 0 && region < kRegionCount ? names[region] : "?";
+}
 
 const char* statusName(ReplayScore::Status s) {
   switch (s) {
@@ -228,11 +299,13 @@ SceneDesc replayDescription(SceneDesc scene, const Dataset& data) {
   auto& a = d.attrs;
   a.erase(std::remove_if(a.begin(), a.end(),
                          [](const AttrDesc& x) {
-                           return x.name == "transform" || x.name == "rotation" || x.name == "translation" ||
-                                  x.name == "timeOffset";
+                           return x.name == "transform" || x.name == "rotation" || x.name == "translation";
                          }),
           a.end());
   d.set("filename", fs::absolute(data.trajectoryPath).string(), SourceLoc{data.trajectoryPath});
+  char offset[40];
+  std::snprintf(offset, sizeof offset, "%.17g", clockOffset(scene, data));
+  d.set("timeOffset", offset, SourceLoc{data.trajectoryPath});
   dropOutputs(scene.root);
   return scene;
 }
@@ -242,10 +315,11 @@ ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const Rep
   Simulation sim(*scene);
   ReplayOptions o = options;
   if (!(o.score.lengthScale > 0)) o.score.lengthScale = 1e-3 / scene->units().siOf(Dimension::length());
-  Scorer scorer(*scene, data, o, replayedInstrument(*scene));
+  const double offset = clockOffset(desc, data.data);
+  Scorer scorer(*scene, data, o, replayedInstrument(*scene), offset);
 
   RunOptions ro;
-  const double span = data.data.end() - sim.time();
+  const double span = std::min(data.data.end(), o.to) - offset - sim.time();
   ro.steps = span > 0 ? static_cast<int>(std::ceil(span / scene->dt() - 1e-9)) : 0;
   ro.threads = o.threads;
   ro.recordWrench = false;

@@ -15,10 +15,12 @@
 
 #include <Eigen/Core>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/SceneDesc.h"
+#include "io/scene/Transform.h"
 #include "study/Dataset.h"
 
 namespace viscera::study {
@@ -41,15 +43,36 @@ struct PreparedDataset {
 PreparedDataset prepareDataset(const std::string& folder, const ScoreOptions& options = {});
 
 // The description a dataset is replayed through: the one TrajectoryDriver follows the dataset's
-// trajectory (its placement attributes and time offset removed: the trajectory is in the scene
-// frame and time), and the scene's outputs (exporters, cameras) are removed. Error when the scene
-// has no TrajectoryDriver or several.
+// trajectory (its placement attributes removed: the trajectory is in the scene frame), and the
+// scene's outputs (exporters, cameras) are removed. The dataset's clock starts with its
+// trajectory's first sample, at the scene's start time: a capture stamped with absolute times
+// (1.7e9 s) replays from the start (the driver's timeOffset is set to the difference). Error when
+// the scene has no TrajectoryDriver or several.
 SceneDesc replayDescription(SceneDesc scene, const Dataset& data);
 
 struct ReplayOptions {
   ScoreOptions score;      // lengthScale 0 is resolved against the scene's units
   int threads = 1;         // worker threads of the run (0: all cores)
   double timeBudget = 0;   // wall-clock seconds before the replay is stopped as a timeout (0: none)
+  // Only measurements at dataset times in [from, to] are scored, and the run stops at `to`.
+  double from = -std::numeric_limits<double>::infinity(), to = std::numeric_limits<double>::infinity();
+  // A rigid correction applied to every cloud (scene frame) before it is scored: the audit's
+  // registration effect.
+  std::optional<RigidTransform> cloudCorrection;
+  // Keep per frame the residuals of each surface region (FrameScore::regions).
+  bool regions = false;
+};
+
+// Where on the tissue a cloud point lies: by the outward normal of its closest triangle (the
+// dominant axis), and whether that closest point is near the instrument (within three radii of
+// the sphere's centre).
+enum Region { kTop, kBottom, kXMin, kXMax, kYMin, kYMax, kNearInstrument, kAwayFromInstrument, kRegionCount };
+const char* regionName(int region);  // "top", "bottom", "x-", "x+", "y-", "y+", "near instrument", "away"
+
+struct RegionResiduals {
+  int count = 0;
+  double sumSquared = 0;  // of the distances
+  double sumSigned = 0;   // of the signed distances along the outward normal (+ outside the tissue)
 };
 
 // One frame's or one wrench sample's part of the score.
@@ -58,6 +81,8 @@ struct FrameScore {
   double value = std::numeric_limits<double>::quiet_NaN();  // RMS distance (frame) or |force error| (sample), scene units
   int points = 0;                                           // points within maxDistance (frames)
   bool contact = false;                                     // the simulated instrument touched the tissue then
+  double force = 0;                                         // |simulated contact force| then (scene units)
+  std::vector<RegionResiduals> regions;                     // kRegionCount entries with ReplayOptions::regions
 };
 
 struct ReplayScore {

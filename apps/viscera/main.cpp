@@ -14,6 +14,7 @@
 
 #include "core/Files.h"
 #include "builtin/Builtins.h"
+#include "apps/viscera/AuditCommand.h"
 #include "apps/viscera/CameraCommand.h"
 #include "apps/viscera/CliText.h"
 #include "apps/viscera/CloudCommand.h"
@@ -229,6 +230,7 @@ int main(int argc, char** argv) {
   addMeshCommand(app, action);
   addDatasetCommand(app, action);
   addSearchCommand(app, action);
+  addAuditCommand(app, action);
 
   try {
     app.parse(argc, argv);

@@ -13,7 +13,10 @@
 #include <pcl/segmentation/extract_clusters.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -212,6 +215,51 @@ PointCloud prepareCloud(const PointCloud& cloud, const PrepOptions& o, PrepRepor
   r.output = out.size();
   if (reportOut) *reportOut = r;
   return out;
+}
+
+double planeFitNoise(const PointCloud& cloud, int k, int samples, NoiseNeighbours by) {
+  const int n = cloud.size();
+  if (k < 4 || n < k) return std::numeric_limits<double>::quiet_NaN();
+  // The plane through points `idx` (centroid, unit normal).
+  auto plane = [&](const std::vector<int>& idx, Eigen::Vector3d& mean, Eigen::Vector3d& normal) {
+    mean.setZero();
+    for (int j : idx) mean += cloud.points.col(j);
+    mean /= static_cast<double>(idx.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (int j : idx) cov += (cloud.points.col(j) - mean) * (cloud.points.col(j) - mean).transpose();
+    normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
+  };
+  // Neighbours are found in image coordinates (x/z, y/z) for a camera-frame cloud: a depth error
+  // moves a point along its pixel's ray, so it does not change which points are neighbours. In 3-D
+  // they would be chosen by the noise itself (points displaced alike look close) and the estimate
+  // would come out low.
+  XyzCloud::Ptr search(new XyzCloud);
+  search->resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = cloud.points.col(i);
+    (*search)[static_cast<size_t>(i)] = by == NoiseNeighbours::Image && p.z() > 0
+                                            ? pcl::PointXYZ(static_cast<float>(p.x() / p.z()), static_cast<float>(p.y() / p.z()), 0.f)
+                                            : pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  }
+  pcl::search::KdTree<pcl::PointXYZ> tree;
+  tree.setInputCloud(search);
+  const int m = std::min(n, std::max(1, samples));
+  std::vector<int> index;
+  std::vector<float> d2;
+  std::vector<double> r2;
+  for (int s = 0; s < m; ++s) {
+    const int i = static_cast<int>(static_cast<long>(s) * n / m);
+    if (tree.nearestKSearch((*search)[static_cast<size_t>(i)], k, index, d2) < k) continue;
+    Eigen::Vector3d mean, normal;
+    plane(index, mean, normal);
+    const double r = normal.dot(cloud.points.col(i) - mean);
+    r2.push_back(r * r);
+  }
+  if (r2.empty()) return std::numeric_limits<double>::quiet_NaN();
+  // The median of the squared residuals is 0.4549 sigma^2 for Gaussian noise; patches across an
+  // edge or the silhouette, a minority, do not move it.
+  std::nth_element(r2.begin(), r2.begin() + r2.size() / 2, r2.end());
+  return std::sqrt(static_cast<double>(k) / (k - 3) * r2[r2.size() / 2] / 0.45494);
 }
 
 }  // namespace viscera::cloud

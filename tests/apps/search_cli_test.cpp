@@ -132,6 +132,32 @@ TEST_F(SearchCli, MpiRanksGiveTheSameTableAsThreads) {
   EXPECT_EQ(a, b);
 }
 
+// The dataset's block is softer (3.2 kPa) than the scene's (5 kPa): the audit names the modulus,
+// writes its reports, and the augmented scene runs.
+TEST_F(SearchCli, AuditNamesTheModulusAndWritesARunnableScene) {
+  const RunResult r = runViscera({"audit", blockScene(), "--data", data(), "--out", tmp_ / "audit", "--jobs", "2"});
+  ASSERT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.out.find("effects found: youngModulus"), std::string::npos) << r;
+  const auto j = nlohmann::json::parse(slurp(tmp_.path() / "audit" / "report.json"));
+  for (const char* key : {"noise_floor_mm", "verdict", "found", "rounds", "candidates", "remaining_gap_mm",
+                          "at_noise_level", "augmented_scene"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["verdict"].get<std::string>(), "effects found");
+  const auto& round = j["rounds"][0];
+  EXPECT_EQ(round["effect"].get<std::string>(), "youngModulus");
+  EXPECT_NEAR(round["params"]["scale"].get<double>(), 0.64, 0.064);
+  for (const char* key : {"params", "heldout_before_mm", "heldout_after_mm", "runner_up", "margin", "p_value"})
+    EXPECT_TRUE(round.contains(key)) << key;
+  EXPECT_NE(slurp(tmp_.path() / "audit" / "report.md").find("Verdict: effects found"), std::string::npos);
+  const std::string scene = j["augmented_scene"].get<std::string>();
+  const RunResult check = runViscera({"run", scene, "--steps", "5", "--out", tmp_ / "run", "--quiet"});
+  EXPECT_EQ(check.rc, 0) << check;
+  EXPECT_NE(slurp(scene).find("audit effect 'youngModulus'"), std::string::npos);
+  // Its exporter writes under --out, not beside the original scene.
+  EXPECT_TRUE(fs::exists(tmp_.path() / "run" / "block.pvd"));
+  EXPECT_FALSE(fs::exists(sourcePath("tests/data/study/block.pvd")));
+}
+
 TEST_F(SearchCli, BadInputExitsTwoAndWritesNothing) {
   struct Case {
     std::vector<std::string> args;

@@ -111,6 +111,18 @@ TEST(Replay, CloudsAtAKnownDistanceScoreThatDistance) {
   EXPECT_EQ(s.steps, 100);  // to the last frame at 0.999 s: 100 steps of 10 ms
 }
 
+// A capture stamped with absolute times (seconds since 1970) replays from the scene's start.
+TEST(Replay, AbsoluteTimeStampsReplayFromTheScenesStart) {
+  TempDir dir;
+  writeParkedDataset(dir.path(), {0.0137, 0.5003}, liftedTopFace(0.2), nullptr, "", 1.7e9);
+  const study::PreparedDataset data = study::prepareDataset(dir.str());
+  const study::ReplayScore s = study::replay(study::replayDescription(blockScene(), data.data), data);
+  ASSERT_TRUE(s.ok()) << s.reason;
+  EXPECT_EQ(s.steps, 51);
+  ASSERT_EQ(s.frames.size(), 2u);
+  EXPECT_NEAR(s.cloudRms, 0.2, 1e-5);
+}
+
 TEST(Replay, TheSceneMustHaveOneTrajectoryDriver) {
   TempDir dir;
   writeParkedDataset(dir.path(), {0.1}, liftedTopFace(0));

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -39,12 +40,19 @@ inline Eigen::Matrix3Xd liftedTopFace(double lift) {
 // A dataset as another tool would write it: the instrument parked 50 mm above the block (never
 // touching), frames at `times` (not on the scene's 10 ms steps) holding `cloud` (scene frame),
 // written as ASCII PCD in the camera frame of `cameraToScene` when given.
+// `t0` is added to every time (a clock that does not start at 0).
 inline void writeParkedDataset(const fs::path& dir, const std::vector<double>& times, const Eigen::Matrix3Xd& cloud,
-                               const viscera::RigidTransform* cameraToScene = nullptr, const std::string& wrench = "") {
+                               const viscera::RigidTransform* cameraToScene = nullptr, const std::string& wrench = "",
+                               double t0 = 0) {
   fs::create_directories(dir / "camera");
+  auto stamp = [&](double t) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", t0 + t);
+    return std::string(b);
+  };
   // Sampled at 7 Hz: another rate than the frames' and the steps'.
   std::string traj = "t,x,y,z,qx,qy,qz,qw\n";
-  for (int k = 0; k <= 7; ++k) traj += std::to_string(k / 7.0) + ",20,10,75,0,0,0,1\n";
+  for (int k = 0; k <= 7; ++k) traj += stamp(k / 7.0) + ",20,10,75,0,0,0,1\n";
   writeText(dir / "trajectory.csv", traj);
   std::string index = "time,file\n";
   for (size_t k = 0; k < times.size(); ++k) {
@@ -52,7 +60,7 @@ inline void writeParkedDataset(const fs::path& dir, const std::vector<double>& t
     c.points = cameraToScene ? (cameraToScene->inverse() * cloud.colwise().homogeneous()).eval() : cloud;
     const std::string name = "f" + std::to_string(k) + ".pcd";
     viscera::cloud::writeCloud((dir / "camera" / name).string(), c, viscera::cloud::CloudEncoding::Ascii);
-    index += std::to_string(times[k]) + "," + name + "\n";
+    index += stamp(times[k]) + "," + name + "\n";
   }
   writeText(dir / "camera" / "index.csv", index);
   if (cameraToScene) viscera::writeTransform((dir / "camera_to_scene.txt").string(), *cameraToScene);

@@ -24,4 +24,6 @@ PointCloud prepareCloud(const PointCloud& cloud, const PrepOptions&, PrepReport*
   needsPcl("preparing a point cloud (plane, outlier and cluster filters)", cloud.source);
 }
 
+double planeFitNoise(const PointCloud& cloud, int, int, NoiseNeighbours) { needsPcl("estimating the noise of a cloud", cloud.source); }
+
 }  // namespace viscera::cloud

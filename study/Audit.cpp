@@ -1,0 +1,680 @@
+#include "study/Audit.h"
+
+#include <algorithm>
+#include <atomic>
+#include <boost/math/distributions/normal.hpp>
+#include <boost/math/distributions/students_t.hpp>
+#include <boost/math/tools/minima.hpp>
+#include <cmath>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <nlopt.hpp>
+#include <sstream>
+#include <thread>
+
+#include "builtin/Builtins.h"
+#include "core/Error.h"
+#include "core/Scene.h"
+#include "core/Text.h"
+#include "engine/collision/Collision.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/pointcloud/CloudPrep.h"
+#include "observation/CloudDistance.h"
+#include "observation/Tissue.h"
+
+namespace viscera::study {
+
+namespace {
+
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+enum Phase { kRest, kLoading, kHolding, kRelease };
+
+double mean(const std::vector<double>& v) {
+  if (v.empty()) return kNan;
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+double variance(const std::vector<double>& v) {
+  if (v.size() < 2) return 0;
+  const double m = mean(v);
+  double s = 0;
+  for (double x : v) s += (x - m) * (x - m);
+  return s / static_cast<double>(v.size() - 1);
+}
+
+// The scaled items of a replay's score in a time window: c_k = d_k / L per frame, g_j = e_j / F
+// per wrench sample (Replay.h).
+struct Items {
+  std::vector<double> c, g, mm;  // mm: d_k in millimetres
+  std::vector<double> times;     // of the frames in c
+  double metric() const { return mean(c) + (g.empty() ? 0.0 : mean(g)); }
+  double se() const {
+    return std::sqrt((c.empty() ? 0 : variance(c) / c.size()) + (g.empty() ? 0 : variance(g) / g.size()));
+  }
+  double mmMean() const { return mean(mm); }
+};
+
+struct Scales {
+  double L = 1, F = 1, mm = 1;  // length scale and force scale (scene units); scene length units per mm
+};
+
+Items itemsOf(const ReplayScore& s, double from, double to, const Scales& k, bool wrench) {
+  Items it;
+  for (const auto& f : s.frames) {
+    if (!std::isfinite(f.value) || f.time < from || f.time > to) continue;
+    it.c.push_back(f.value / k.L);
+    it.mm.push_back(f.value / k.mm);
+    it.times.push_back(f.time);
+  }
+  if (wrench)
+    for (const auto& w : s.samples)
+      if (w.time >= from && w.time <= to) it.g.push_back(w.value / k.F);
+  return it;
+}
+
+// One-sided paired test that `after` lowers the metric of `before` (same frames and samples):
+// z = mean difference / its standard error, p from Student's t with the frames' degrees of freedom.
+double pairedP(const Items& before, const Items& after) {
+  if (before.c.size() != after.c.size() || before.g.size() != after.g.size() || before.c.size() < 3) return 1;
+  std::vector<double> dc(before.c.size()), dg(before.g.size());
+  for (size_t i = 0; i < dc.size(); ++i) dc[i] = before.c[i] - after.c[i];
+  for (size_t i = 0; i < dg.size(); ++i) dg[i] = before.g[i] - after.g[i];
+  const double d = mean(dc) + (dg.empty() ? 0.0 : mean(dg));
+  const double se = std::sqrt(variance(dc) / dc.size() + (dg.empty() ? 0.0 : variance(dg) / dg.size()));
+  if (!(se > 0)) return d > 0 ? 0.0 : 1.0;
+  boost::math::students_t t(static_cast<double>(dc.size() - 1));
+  return boost::math::cdf(boost::math::complement(t, d / se));
+}
+
+// BIC of the items as Gaussian residuals with k parameters: n ln(mean square) + k ln n.
+double bic(const Items& it, int k) {
+  double ss = 0;
+  for (double x : it.c) ss += x * x;
+  for (double x : it.g) ss += x * x;
+  const double n = static_cast<double>(it.c.size() + it.g.size());
+  return n > 0 ? n * std::log(ss / n) + k * std::log(n) : 0.0;
+}
+
+int phaseOf(const std::vector<FrameScore>& frames, size_t k, double peak) {
+  const FrameScore& f = frames[k];
+  if (!f.contact) return kRest;
+  const size_t a = k > 0 ? k - 1 : k, b = k + 1 < frames.size() ? k + 1 : k;
+  const double dt = frames[b].time - frames[a].time;
+  const double rate = dt > 0 ? (frames[b].force - frames[a].force) / dt : 0.0;
+  // Holding: the force changes by less than a tenth of its peak per second.
+  if (std::abs(rate) < 0.1 * peak) return kHolding;
+  return rate > 0 ? kLoading : kRelease;
+}
+
+Localisation localise(const ReplayScore& s, const Scales& k, double alpha, double noiseFloorMm) {
+  Localisation L;
+  L.cells.assign(Localisation::kPhases, std::vector<CellStats>(kRegionCount));
+  L.framesPerPhase.assign(Localisation::kPhases, 0);
+  double peak = 0;
+  for (const auto& f : s.frames) peak = std::max(peak, f.force);
+  // Per cell: each frame's mean signed residual (mm), for the test; sums over points.
+  std::vector<std::vector<std::vector<double>>> perFrame(Localisation::kPhases, std::vector<std::vector<double>>(kRegionCount));
+  std::vector<std::vector<RegionResiduals>> sums(Localisation::kPhases, std::vector<RegionResiduals>(kRegionCount));
+  std::vector<double> rms;
+  for (size_t i = 0; i < s.frames.size(); ++i) {
+    const FrameScore& f = s.frames[i];
+    if (!std::isfinite(f.value)) continue;
+    const int ph = phaseOf(s.frames, i, peak);
+    L.framesPerPhase[ph] += 1;
+    rms.push_back(f.value / k.mm);
+    L.frameTimes.push_back(f.time);
+    L.frameRmsMm.push_back(f.value / k.mm);
+    L.framePhases.push_back(ph);
+    for (int r = 0; r < static_cast<int>(f.regions.size()); ++r) {
+      const RegionResiduals& rr = f.regions[static_cast<size_t>(r)];
+      if (rr.count == 0) continue;
+      perFrame[ph][r].push_back(rr.sumSigned / rr.count / k.mm);
+      sums[ph][r].count += rr.count;
+      sums[ph][r].sumSquared += rr.sumSquared;
+      sums[ph][r].sumSigned += rr.sumSigned;
+    }
+  }
+  L.meanMm = mean(rms);
+  L.p95Mm = rms.empty() ? kNan : obs::percentile(rms, 0.95);
+  // The signed residual of a perfect model is not zero (noise pushed past edges, grazing views):
+  // the null of each region in a loaded phase is that region at rest (Welch's t-test over frames,
+  // Holm-adjusted); a difference must also be worth seeing (half the noise floor). Any cell whose
+  // RMS exceeds 1.5 x the noise floor disagrees too, rest included: what no test against rest can
+  // see (a static error) still shows against the noise.
+  std::vector<std::pair<double, CellStats*>> tests;
+  std::vector<std::pair<CellStats*, double>> effect;  // |difference from rest| of each tested cell
+  for (int ph = 0; ph < Localisation::kPhases; ++ph)
+    for (int r = 0; r < kRegionCount; ++r) {
+      CellStats& c = L.cells[ph][r];
+      const auto& v = perFrame[ph][r];
+      c.frames = static_cast<int>(v.size());
+      c.points = sums[ph][r].count;
+      if (c.points == 0) continue;
+      c.rmsMm = std::sqrt(sums[ph][r].sumSquared / c.points) / k.mm;
+      c.meanSignedMm = sums[ph][r].sumSigned / c.points / k.mm;
+      c.aboveNoise = noiseFloorMm > 0 && c.rmsMm > 1.5 * noiseFloorMm;
+      const auto& rest = perFrame[kRest][r];
+      if (ph == kRest || v.size() < 3 || rest.size() < 3) continue;
+      const double se = std::sqrt(variance(v) / v.size() + variance(rest) / rest.size());
+      const double diff = mean(v) - mean(rest);
+      c.vsRestMm = diff;
+      double p = 1;
+      if (se > 0) {
+        // Welch-Satterthwaite degrees of freedom.
+        const double a = variance(v) / v.size(), b = variance(rest) / rest.size();
+        const double dof = (a + b) * (a + b) / (a * a / (v.size() - 1) + b * b / (rest.size() - 1));
+        boost::math::students_t t(std::max(1.0, dof));
+        p = 2 * boost::math::cdf(boost::math::complement(t, std::abs(diff) / se));
+      } else if (diff != 0) {
+        p = 0;
+      }
+      tests.push_back({p, &c});
+    }
+  std::sort(tests.begin(), tests.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  double running = 0;
+  for (size_t i = 0; i < tests.size(); ++i) {
+    running = std::max(running, std::min(1.0, tests[i].first * static_cast<double>(tests.size() - i)));
+    tests[i].second->p = running;
+  }
+  for (auto& row : L.cells)
+    for (CellStats& c : row)
+      c.significant = c.aboveNoise || (c.p < alpha && std::abs(c.vsRestMm) > 0.5 * noiseFloorMm);
+  return L;
+}
+
+double forceRmsOf(const ReplayScore& s) {
+  if (s.samples.empty()) return kNan;
+  double ss = 0;
+  for (const auto& w : s.samples) ss += w.value * w.value;
+  return std::sqrt(ss / s.samples.size());
+}
+
+class Auditor {
+ public:
+  Auditor(const PreparedDataset& data, const AuditOptions& o, AuditProgress* progress)
+      : data_(data), o_(o), progress_(progress) {}
+
+  AuditReport run(const SceneDesc& scene) {
+    AuditReport rep;
+    const SceneDesc nominal = replayDescription(scene, data_.data);
+    AuditScene as = describe(nominal);
+    scales_.mm = 1e-3 / as.units.siOf(Dimension::length());
+    scales_.L = o_.replay.score.lengthScale > 0 ? o_.replay.score.lengthScale : scales_.mm;
+    scales_.F = data_.score.forceScale > 0 ? data_.score.forceScale : 1.0;
+    wrench_ = data_.scoresWrench();
+    rep.splitTime = data_.data.start() + o_.trainFraction * (data_.data.end() - data_.data.start());
+    split_ = rep.splitTime;
+
+    say("noise: estimating the depth noise from the clouds");
+    rep.noiseFloorMm = depthNoise() / scales_.mm;
+    say("nominal: replaying the dataset through the scene");
+    ReplayScore base = replayFull(nominal, {});
+    if (!base.ok()) throw Error(SourceLoc{scene.file}, "the nominal scene does not replay the dataset: " + base.reason);
+    rep.before = localise(base, scales_, o_.alpha, rep.noiseFloorMm);
+    if (wrench_) {
+      double ss = 0;
+      int n = 0;
+      for (size_t j = 0; j < base.samples.size(); ++j)
+        if (!base.samples[j].contact) {
+          ss += data_.data.wrench->force[j].squaredNorm();
+          ++n;
+        }
+      if (n > 0) rep.forceNoise = std::sqrt(ss / n);
+    }
+
+    SceneDesc current = nominal;   // what is replayed
+    SceneDesc augmented = scene;   // what the user gets: the scene as written, plus the effects
+    std::optional<RigidTransform> correction;
+    std::vector<std::string> remaining = effectKeys();
+    Items heldBase = itemsOf(base, split_, kInf, scales_, wrench_);
+    ReplayScore last = base;
+    for (int round = 0; round < o_.rounds; ++round) {
+      const double gap = heldBase.mmMean();
+      if (atNoise(gap, last, rep)) break;
+      as = describe(current);
+      say("round " + std::to_string(round + 1) + ": fitting " + std::to_string(remaining.size()) + " effects");
+      AuditRound r = fitAll(current, as, remaining, heldBase, rep);
+      r.heldoutBeforeMm = gap;
+      if (r.candidates.empty()) break;
+      // Holm: the smallest p is compared with alpha / m.
+      const EffectFit& best = r.candidates.front();
+      r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable &&
+                    best.pValue < o_.alpha / static_cast<double>(r.candidates.size());
+      if (r.candidates.size() > 1) {
+        r.runnerUp = r.candidates[1].effect;
+        r.margin = (best.heldoutBefore - best.heldoutAfter) - (r.candidates[1].heldoutBefore - r.candidates[1].heldoutAfter);
+      }
+      if (!r.confirmed) {
+        r.heldoutAfterMm = gap;
+        rep.rounds.push_back(std::move(r));
+        break;
+      }
+      const Effect& e = effect(best.effect);
+      e.apply(current, best.values, as);
+      e.apply(augmented, best.values, as);
+      if (auto c = e.cloudCorrection(best.values)) correction = c;
+      r.heldoutAfterMm = best.heldoutMmAfter;
+      rep.found.push_back(best.effect);
+      remaining.erase(std::find(remaining.begin(), remaining.end(), best.effect));
+      rep.rounds.push_back(std::move(r));
+      last = replayFull(current, correction);
+      heldBase = itemsOf(last, split_, kInf, scales_, wrench_);
+    }
+    rep.after = localise(last, scales_, o_.alpha, rep.noiseFloorMm);
+    rep.remainingGapMm = heldBase.mmMean();
+    rep.atNoiseLevel = atNoise(rep.remainingGapMm, last, rep);
+    rep.verdict = rep.found.empty() ? "no missing effect detected" : "effects found";
+    rep.augmented = augmented;
+    rep.notes = notes_;
+    return rep;
+  }
+
+ private:
+  static constexpr double kInf = std::numeric_limits<double>::infinity();
+
+  void say(const std::string& s) {
+    if (progress_) progress_->message(s);
+  }
+
+  std::vector<std::string> effectKeys() const {
+    std::vector<std::string> keys;
+    for (const auto& e : library_) keys.push_back(e->key());
+    if (o_.effects.empty()) return keys;
+    for (const auto& k : o_.effects)
+      if (std::find(keys.begin(), keys.end(), k) == keys.end()) {
+        std::string all;
+        for (const auto& x : keys) all += (all.empty() ? "" : ", ") + x;
+        throw Error("--effects: '" + k + "' is not an effect of the library (" + all + ")");
+      }
+    return o_.effects;
+  }
+
+  const Effect& effect(const std::string& key) const {
+    for (const auto& e : library_)
+      if (e->key() == key) return *e;
+    throw Error("no effect '" + key + "'");
+  }
+
+  AuditScene describe(const SceneDesc& desc) const {
+    AuditScene as;
+    as.desc = desc;
+    const AttrDesc* u = desc.root.find("units");
+    as.units = u ? UnitSystem::parse(u->value) : UnitSystem();
+    auto scene = buildScene(desc);
+    scene->init();
+    for (MechanicalObject* m : scene->all<MechanicalObject>())
+      for (Eigen::Index i = 0; i < m->x0.cols(); ++i) as.tissueBox.extend(m->x0.col(i));
+    const auto spheres = scene->all<SphereCollisionModel>();
+    if (!spheres.empty()) as.instrumentRadius = spheres.front()->radius();
+    return as;
+  }
+
+  // The clouds' depth noise (scene units): the median over up to eight frames spread through
+  // the dataset, each read again at full resolution, in the camera frame when the dataset has one.
+  double depthNoise() const {
+    std::vector<double> v;
+    cloud::ReadOptions ro;
+    ro.dropNonFinite = true;
+    ro.allowEmpty = true;
+    const size_t n = data_.data.frames.size();
+    for (size_t s = 0; s < std::min<size_t>(8, n); ++s) {
+      const size_t k = s * n / std::min<size_t>(8, n);
+      const cloud::PointCloud c = cloud::readCloud(data_.data.frames[k].path, ro);
+      // Patches wide against the noise (a plane through a patch not much wider than the noise
+      // follows the noise and reads low), narrow against the tissue's curvature: a fiftieth of the
+      // frame's points, 20 to 200.
+      const int neighbours = std::clamp(c.size() / 50, 20, 200);
+      const double e = cloud::planeFitNoise(c, neighbours, 2000,
+                                            data_.data.cameraToScene ? cloud::NoiseNeighbours::Image
+                                                                     : cloud::NoiseNeighbours::Space);
+      if (std::isfinite(e)) v.push_back(e);
+    }
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  }
+
+  bool atNoise(double gapMm, const ReplayScore& last, const AuditReport& rep) const {
+    bool cloud = gapMm <= 1.5 * rep.noiseFloorMm;
+    bool force = true;
+    if (wrench_ && std::isfinite(rep.forceNoise)) {
+      double ss = 0;
+      int n = 0;
+      for (const auto& w : last.samples)
+        if (w.time > split_) ss += w.value * w.value, ++n;
+      force = n == 0 || std::sqrt(ss / n) <= 1.5 * rep.forceNoise;
+    }
+    return cloud && force;
+  }
+
+  ReplayScore replayFull(const SceneDesc& desc, const std::optional<RigidTransform>& correction) const {
+    ReplayOptions ro = o_.replay;
+    ro.regions = true;
+    ro.cloudCorrection = correction;
+    return replay(desc, data_, ro);
+  }
+
+  AuditRound fitAll(const SceneDesc& current, const AuditScene& as, const std::vector<std::string>& keys,
+                    const Items& heldBase, AuditReport& rep) {
+    std::vector<EffectFit> fits;
+    std::mutex mutex;
+    std::atomic<size_t> next{0};
+    std::exception_ptr failure;
+    auto work = [&] {
+      for (;;) {
+        const size_t i = next++;
+        if (i >= keys.size()) return;
+        try {
+          const Effect& e = effect(keys[i]);
+          const auto params = e.params(as);
+          if (params.empty()) {
+            std::lock_guard<std::mutex> lock(mutex);
+            notes_.push_back("effect '" + keys[i] + "' does not apply to this scene");
+            continue;
+          }
+          EffectFit f = fit(e, params, current, as, heldBase);
+          std::lock_guard<std::mutex> lock(mutex);
+          say("  " + f.effect + ": " + f.status + (f.status == "ok" ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
+                                                                           formatNumber(f.heldoutMmAfter) + " mm, p " +
+                                                                           formatNumber(f.pValue)
+                                                                     : ""));
+          fits.push_back(std::move(f));
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!failure) failure = std::current_exception();
+          next = keys.size();
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int j = 1; j < std::min<int>(o_.jobs, static_cast<int>(keys.size())); ++j) pool.emplace_back(work);
+    work();
+    for (auto& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+    std::sort(fits.begin(), fits.end(), [](const EffectFit& a, const EffectFit& b) {
+      if ((a.status == "ok") != (b.status == "ok")) return a.status == "ok";
+      return a.deltaBic < b.deltaBic;
+    });
+    AuditRound r;
+    r.candidates = std::move(fits);
+    (void)rep;
+    return r;
+  }
+
+  // Fits one effect on the training window, then scores the fit on the held-out window.
+  EffectFit fit(const Effect& e, const std::vector<EffectParam>& params, const SceneDesc& current, const AuditScene& as,
+                const Items& heldBase) const {
+    EffectFit f;
+    f.effect = e.key();
+    f.what = e.what();
+    f.params = params;
+    const size_t d = params.size();
+    auto toU = [&](size_t j, double v) { return params[j].scale == Scale::Log ? std::log10(v) : v; };
+    auto fromU = [&](size_t j, double u) { return params[j].scale == Scale::Log ? std::pow(10.0, u) : u; };
+    auto values = [&](const std::vector<double>& s) {
+      std::vector<double> v(d);
+      for (size_t j = 0; j < d; ++j) {
+        const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
+        v[j] = fromU(j, a + std::clamp(s[j], 0.0, 1.0) * (b - a));
+      }
+      return v;
+    };
+    double lo = kInf, hi = -kInf, seTrain = 0;
+    std::vector<double> bestS;
+    double bestM = kInf;
+    auto evaluate = [&](const std::vector<double>& s) {
+      SceneDesc desc = current;
+      const auto v = values(s);
+      e.apply(desc, v, as);
+      ReplayOptions ro = o_.replay;
+      ro.to = split_;
+      ro.cloudCorrection = e.cloudCorrection(v);
+      ++f.evaluations;
+      const ReplayScore sc = replay(desc, data_, ro);
+      if (!sc.ok()) return 1e30;
+      const Items it = itemsOf(sc, -kInf, split_, scales_, wrench_);
+      const double m = it.metric();
+      lo = std::min(lo, m);
+      hi = std::max(hi, m);
+      if (m < bestM) {
+        bestM = m;
+        bestS = s;
+        seTrain = it.se();
+      }
+      return m;
+    };
+    std::vector<double> s0(d);
+    for (size_t j = 0; j < d; ++j) {
+      const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
+      s0[j] = b > a ? (toU(j, std::clamp(params[j].nominal, params[j].lo, params[j].hi)) - a) / (b - a) : 0.5;
+    }
+    f.trainBefore = evaluate(s0);
+    if (d == 1) {
+      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(1, o_.maxEvaluations - 1));
+      boost::math::tools::brent_find_minima([&](double s) { return evaluate({s - 1}); }, 1.0, 2.0, 12, it);
+    } else {
+      nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
+      opt.set_lower_bounds(std::vector<double>(d, 0.0));
+      opt.set_upper_bounds(std::vector<double>(d, 1.0));
+      opt.set_xtol_abs(1e-3);
+      opt.set_maxeval(std::max(2 * static_cast<int>(d) + 2, o_.maxEvaluations - 1));
+      std::function<double(const std::vector<double>&)> fn = evaluate;
+      opt.set_min_objective(
+          [](const std::vector<double>& s, std::vector<double>&, void* p) {
+            return (*static_cast<std::function<double(const std::vector<double>&)>*>(p))(s);
+          },
+          &fn);
+      std::vector<double> s = s0;
+      double v = 0;
+      try {
+        opt.optimize(s, v);
+      } catch (const nlopt::roundoff_limited&) {
+      } catch (const std::runtime_error& err) {
+        if (bestS.empty()) f.status = std::string("the minimiser failed: ") + err.what();
+      }
+    }
+    if (bestS.empty()) {
+      f.status = "every replay of the fit failed";
+      return f;
+    }
+    f.values = values(bestS);
+    f.trainAfter = bestM;
+    f.identifiable = hi - lo > 2 * seTrain;
+    // The held-out score of the fitted values: one full replay.
+    SceneDesc desc = current;
+    e.apply(desc, f.values, as);
+    ReplayOptions ro = o_.replay;
+    ro.cloudCorrection = e.cloudCorrection(f.values);
+    const ReplayScore full = replay(desc, data_, ro);
+    if (!full.ok()) {
+      f.status = "the fitted scene failed on the held-out frames: " + full.reason;
+      return f;
+    }
+    const Items held = itemsOf(full, split_, kInf, scales_, wrench_);
+    f.heldoutBefore = heldBase.metric();
+    f.heldoutAfter = held.metric();
+    f.heldoutMmBefore = heldBase.mmMean();
+    f.heldoutMmAfter = held.mmMean();
+    f.deltaBic = bic(held, static_cast<int>(d)) - bic(heldBase, 0);
+    f.pValue = pairedP(heldBase, held);
+    return f;
+  }
+
+  const PreparedDataset& data_;
+  const AuditOptions& o_;
+  AuditProgress* progress_;
+  std::vector<std::unique_ptr<Effect>> library_ = effectLibrary();
+  Scales scales_;
+  bool wrench_ = false;
+  double split_ = 0;
+  std::vector<std::string> notes_;
+};
+
+}  // namespace
+
+const char* Localisation::phaseName(int phase) {
+  static const char* const names[] = {"rest", "loading", "holding", "release"};
+  return phase >= 0 && phase < kPhases ? names[phase] : "?";
+}
+
+AuditReport runAudit(const SceneDesc& scene, const PreparedDataset& data, const AuditOptions& options,
+                     AuditProgress* progress) {
+  if (!(options.trainFraction > 0 && options.trainFraction < 1)) throw Error("--train: must be between 0 and 1");
+  if (options.rounds < 1) throw Error("--rounds: must be at least 1");
+  if (options.jobs < 1) throw Error("--jobs: must be at least 1");
+  Auditor a(data, options, progress);
+  return a.run(scene);
+}
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+Json num(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+
+Json fitJson(const EffectFit& f) {
+  Json params = Json::object();
+  for (size_t j = 0; j < f.params.size() && j < f.values.size(); ++j) params[f.params[j].name] = f.values[j];
+  return {{"effect", f.effect},
+          {"status", f.status},
+          {"params", params},
+          {"evaluations", f.evaluations},
+          {"train_before", num(f.trainBefore)},
+          {"train_after", num(f.trainAfter)},
+          {"heldout_before", num(f.heldoutBefore)},
+          {"heldout_after", num(f.heldoutAfter)},
+          {"heldout_before_mm", num(f.heldoutMmBefore)},
+          {"heldout_after_mm", num(f.heldoutMmAfter)},
+          {"delta_bic", num(f.deltaBic)},
+          {"p_value", num(f.pValue)},
+          {"identifiable", f.identifiable}};
+}
+
+Json localisationJson(const Localisation& L) {
+  Json cells = Json::array();
+  for (int ph = 0; ph < Localisation::kPhases; ++ph)
+    for (int r = 0; r < kRegionCount; ++r) {
+      const CellStats& c = L.cells[ph][r];
+      if (c.points == 0) continue;
+      cells.push_back({{"phase", Localisation::phaseName(ph)},
+                       {"region", regionName(r)},
+                       {"frames", c.frames},
+                       {"points", c.points},
+                       {"rms_mm", num(c.rmsMm)},
+                       {"mean_signed_mm", num(c.meanSignedMm)},
+                       {"vs_rest_mm", num(c.vsRestMm)},
+                       {"p_value", num(c.p)},
+                       {"above_noise", c.aboveNoise},
+                       {"disagrees", c.significant}});
+    }
+  return {{"mean_mm", num(L.meanMm)}, {"p95_mm", num(L.p95Mm)}, {"cells", cells}};
+}
+
+}  // namespace
+
+std::string auditJson(const AuditReport& r, const std::string& scene, const std::string& data,
+                      const std::string& augmentedScene) {
+  Json j;
+  j["scene"] = scene;
+  j["data"] = data;
+  j["noise_floor_mm"] = num(r.noiseFloorMm);
+  j["force_noise"] = num(r.forceNoise);
+  j["verdict"] = r.verdict;
+  j["found"] = r.found;
+  Json rounds = Json::array();
+  for (const auto& rd : r.rounds) {
+    const EffectFit* w = rd.candidates.empty() ? nullptr : &rd.candidates.front();
+    Json params = Json::object();
+    if (w)
+      for (size_t k = 0; k < w->params.size() && k < w->values.size(); ++k) params[w->params[k].name] = w->values[k];
+    Json cands = Json::array();
+    for (const auto& c : rd.candidates) cands.push_back(fitJson(c));
+    rounds.push_back({{"effect", rd.confirmed && w ? Json(w->effect) : Json(nullptr)},
+                      {"best_candidate", w ? Json(w->effect) : Json(nullptr)},
+                      {"confirmed", rd.confirmed},
+                      {"params", params},
+                      {"heldout_before_mm", num(rd.heldoutBeforeMm)},
+                      {"heldout_after_mm", num(rd.heldoutAfterMm)},
+                      {"runner_up", rd.runnerUp.empty() ? Json(nullptr) : Json(rd.runnerUp)},
+                      {"margin", num(rd.margin)},
+                      {"p_value", w ? num(w->pValue) : Json(nullptr)},
+                      {"candidates", cands}});
+  }
+  j["rounds"] = rounds;
+  Json cands = Json::array();
+  for (const auto& rd : r.rounds)
+    for (const auto& c : rd.candidates) cands.push_back(fitJson(c));
+  j["candidates"] = cands;
+  j["remaining_gap_mm"] = num(r.remainingGapMm);
+  j["at_noise_level"] = r.atNoiseLevel;
+  j["augmented_scene"] = augmentedScene;
+  j["split_time"] = r.splitTime;
+  j["before"] = localisationJson(r.before);
+  j["after"] = localisationJson(r.after);
+  j["notes"] = r.notes;
+  return j.dump(2) + "\n";
+}
+
+std::string auditMarkdown(const AuditReport& r, const std::string& scene, const std::string& data,
+                          const std::string& augmentedScene) {
+  auto fmt = [](double v) {
+    std::ostringstream o;
+    o.precision(4);
+    o << v;
+    return o.str();
+  };
+  std::ostringstream m;
+  m.precision(4);
+  m << "# Model audit\n\n"
+    << "Scene `" << scene << "`, dataset `" << data << "`.\n\n"
+    << "**Verdict: " << r.verdict << "**";
+  if (!r.found.empty()) {
+    m << " — ";
+    for (size_t i = 0; i < r.found.size(); ++i) m << (i ? ", " : "") << "`" << r.found[i] << "`";
+  }
+  m << ". Depth noise of the clouds (noise floor): " << r.noiseFloorMm << " mm. Remaining held-out gap: "
+    << r.remainingGapMm << " mm (" << (r.atNoiseLevel ? "at" : "above") << " the noise level, 1.5 x the floor). "
+    << "Training frames end at t = " << r.splitTime << " s; the rest are held out.\n\n"
+    << "Augmented scene: `" << augmentedScene << "`.\n\n";
+  m << "## Before and after\n\n| | mean (mm) | 95th percentile (mm) |\n|---|---|---|\n"
+    << "| nominal scene | " << r.before.meanMm << " | " << r.before.p95Mm << " |\n"
+    << "| augmented scene | " << r.after.meanMm << " | " << r.after.p95Mm << " |\n\n";
+  m << "## Where the nominal scene disagrees\n\nPer phase and surface region: RMS and mean signed residual "
+       "(+: the cloud lies outside the simulated surface), the change of the mean signed residual from the same region "
+       "at rest and its p (Welch's t-test over frames, Holm-adjusted). A cell disagrees when its RMS exceeds 1.5 x the "
+       "noise floor, or when it moves from rest by more than half the floor at p < alpha.\n\n"
+       "| phase | region | frames | RMS (mm) | mean signed (mm) | vs rest (mm) | p | |\n|---|---|---|---|---|---|---|---|\n";
+  for (int ph = 0; ph < Localisation::kPhases; ++ph)
+    for (int rg = 0; rg < kRegionCount; ++rg) {
+      const CellStats& c = r.before.cells[ph][rg];
+      if (c.points == 0) continue;
+      m << "| " << Localisation::phaseName(ph) << " | " << regionName(rg) << " | " << c.frames << " | " << c.rmsMm << " | "
+        << c.meanSignedMm << " | " << (ph == kRest ? std::string("") : fmt(c.vsRestMm)) << " | "
+        << (ph == kRest ? std::string("") : fmt(c.p)) << " | " << (c.significant ? "**disagrees**" : "") << " |\n";
+    }
+  for (size_t i = 0; i < r.rounds.size(); ++i) {
+    const AuditRound& rd = r.rounds[i];
+    m << "\n## Round " << i + 1 << "\n\n"
+      << (rd.confirmed ? "Added `" + rd.candidates.front().effect + "`"
+                       : std::string("No candidate passed the test against the nominal scene"))
+      << ". Held-out gap " << rd.heldoutBeforeMm << " -> " << rd.heldoutAfterMm << " mm.\n\n"
+      << "| rank | effect | fitted | held-out (mm) | delta BIC | p | identifiable |\n|---|---|---|---|---|---|---|\n";
+    for (size_t k = 0; k < rd.candidates.size(); ++k) {
+      const EffectFit& f = rd.candidates[k];
+      std::ostringstream v;
+      v.precision(4);
+      for (size_t j = 0; j < f.values.size(); ++j) v << (j ? ", " : "") << f.params[j].name << " " << f.values[j];
+      m << "| " << k + 1 << " | `" << f.effect << "` | " << (f.status == "ok" ? v.str() : f.status) << " | "
+        << f.heldoutMmBefore << " -> " << f.heldoutMmAfter << " | " << f.deltaBic << " | " << f.pValue << " | "
+        << (f.identifiable ? "yes" : "no: flat over its range") << " |\n";
+    }
+  }
+  if (!r.notes.empty()) {
+    m << "\n## Notes\n\n";
+    for (const auto& n : r.notes) m << "- " << n << "\n";
+  }
+  return m.str();
+}
+
+}  // namespace viscera::study

@@ -1,0 +1,63 @@
+// Effects the model audit can add to a scene: each a parametrised edit of the parsed description
+// (gravity, the Young's modulus, damping, ...), fitted to a dataset and kept when it explains what
+// the nominal scene does not. Adding an effect is one file implementing Effect plus its line in
+// Library.cpp.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/SceneDesc.h"
+#include "core/Units.h"
+#include "io/scene/Transform.h"
+#include "study/Search.h"
+
+namespace viscera::study {
+
+// One fitted parameter: its range and the value that leaves the scene as it is.
+struct EffectParam {
+  std::string name;
+  double lo = 0, hi = 1;
+  double nominal = 0;
+  Scale scale = Scale::Linear;
+  std::string unit;  // for reports ("m/s^2", "" for a ratio)
+};
+
+// What an effect may know of the nominal scene.
+struct AuditScene {
+  SceneDesc desc;
+  UnitSystem units;
+  Eigen::AlignedBox3d tissueBox;  // the deformable bodies' rest positions
+  double instrumentRadius = 0;    // the first SphereCollisionModel's (0: none)
+};
+
+class Effect {
+ public:
+  virtual ~Effect() = default;
+  // The key the report names it by ("gravity") and a line saying what it changes.
+  virtual std::string key() const = 0;
+  virtual std::string what() const = 0;
+  // Its parameters for this scene; empty when it does not apply (e.g. friction without friction
+  // contact).
+  virtual std::vector<EffectParam> params(const AuditScene& scene) const = 0;
+  // Applies it with `values` (one per parameter, in their order) to `desc`, marking each element
+  // it changes or adds with a comment (ElementDesc::comment).
+  virtual void apply(SceneDesc& desc, const std::vector<double>& values, const AuditScene& scene) const = 0;
+  // A rigid correction of the clouds instead of a scene edit (registration).
+  virtual std::optional<RigidTransform> cloudCorrection(const std::vector<double>& values) const { return std::nullopt; }
+};
+
+// Every effect of the library, in report order.
+std::vector<std::unique_ptr<Effect>> effectLibrary();
+
+// Helpers for effects: the elements with a tag (SOFA aliases included), the value of a real
+// attribute in scene units (its default when not written), and a number as scene text.
+std::vector<ElementDesc*> elementsOf(ElementDesc& root, const std::string& tag);
+std::vector<double> realsOf(const ElementDesc& el, const std::string& attribute, const UnitSystem& units);
+std::string numberText(double v);
+void noteChange(ElementDesc& el, const std::string& effect, const std::string& what);
+
+}  // namespace viscera::study

@@ -1,0 +1,68 @@
+// The effect library and the helpers effects share.
+#include <cstdio>
+
+#include "builtin/Builtins.h"
+#include "core/Attributes.h"
+#include "core/Error.h"
+#include "core/Registry.h"
+#include "study/effects/Effect.h"
+
+namespace viscera::study {
+
+std::unique_ptr<Effect> makeGravity();
+std::unique_ptr<Effect> makeYoungModulus();
+std::unique_ptr<Effect> makePoissonRatio();
+std::unique_ptr<Effect> makeDamping();
+std::unique_ptr<Effect> makeFriction();
+std::unique_ptr<Effect> makeInstrumentRadius();
+
+std::vector<std::unique_ptr<Effect>> effectLibrary() {
+  std::vector<std::unique_ptr<Effect>> v;
+  v.push_back(makeGravity());
+  v.push_back(makeYoungModulus());
+  v.push_back(makePoissonRatio());
+  v.push_back(makeDamping());
+  v.push_back(makeFriction());
+  v.push_back(makeInstrumentRadius());
+  return v;
+}
+
+namespace {
+void collect(ElementDesc& el, const std::string& tag, std::vector<ElementDesc*>& out) {
+  const ComponentSpec* s = builtinRegistry().find(el.tag);
+  if (el.tag == tag || (s && s->name == tag)) out.push_back(&el);
+  for (auto& c : el.children) collect(c, tag, out);
+}
+}  // namespace
+
+std::vector<ElementDesc*> elementsOf(ElementDesc& root, const std::string& tag) {
+  std::vector<ElementDesc*> out;
+  collect(root, tag, out);
+  return out;
+}
+
+std::vector<double> realsOf(const ElementDesc& el, const std::string& attribute, const UnitSystem& units) {
+  const ComponentSpec* spec = el.tag == "Node" ? &Registry::nodeSpec() : builtinRegistry().find(el.tag);
+  const AttrSpec* a = spec ? spec->find(attribute) : nullptr;
+  if (!a) throw Error(el.loc, el.tag + " has no attribute '" + attribute + "'");
+  const AttrDesc* given = el.find(attribute);
+  AttrValue v;
+  try {
+    parseAttrText(*a, given ? given->value : a->defaultValue, units, v);
+  } catch (const std::invalid_argument& e) {
+    throw Error(given ? given->loc : el.loc, el.tag + "." + attribute + ": " + e.what());
+  }
+  return v.nums;
+}
+
+std::string numberText(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.10g", v);
+  return b;
+}
+
+void noteChange(ElementDesc& el, const std::string& effect, const std::string& what) {
+  el.comment += (el.comment.empty() ? "" : "; ") + std::string("audit effect '") + effect + "': " + what;
+}
+
+}  // namespace viscera::study
