@@ -158,6 +158,32 @@ TEST_F(SearchCli, AuditNamesTheModulusAndWritesARunnableScene) {
   EXPECT_FALSE(fs::exists(sourcePath("tests/data/study/block.pvd")));
 }
 
+// kill -9 in the middle of a batch leaves a results table that the rerun reads and completes,
+// equal to an uninterrupted run's.
+TEST_F(SearchCli, AKilledSearchResumesToTheSameTable) {
+  const std::string grid = "block/fem.youngModulus=log:1kPa:10kPa:8";
+  auto args = [&](const std::string& out) {
+    return std::vector<std::string>{"search", blockScene(), "--data", data(), "--param", grid, "--out", out, "--no-plot", "--quiet"};
+  };
+  ASSERT_EQ(runViscera(args(tmp_ / "whole")).rc, 0);
+  std::string cmd = shellQuote(VISCERA_BINARY);
+  for (const auto& a : args(tmp_ / "killed")) cmd += " " + shellQuote(a);
+  std::system(("(" + cmd + " >/dev/null 2>&1 & p=$!; sleep 0.3; kill -9 $p; wait $p) 2>/dev/null").c_str());
+  const RunResult again = runViscera(args(tmp_ / "killed"));
+  ASSERT_EQ(again.rc, 0) << again;
+  auto table = [&](const std::string& dir) {
+    std::vector<std::string> rows;
+    for (const auto& l : lines(slurp(fs::path(dir) / "results.csv"))) {
+      size_t end = 0;
+      for (int f = 0; f < 13 && end != std::string::npos; ++f) end = l.find(',', end + 1);
+      rows.push_back(l.substr(0, end));
+    }
+    std::sort(rows.begin(), rows.end());
+    return rows;
+  };
+  EXPECT_EQ(table(tmp_ / "whole"), table(tmp_ / "killed"));
+}
+
 TEST_F(SearchCli, BadInputExitsTwoAndWritesNothing) {
   struct Case {
     std::vector<std::string> args;
