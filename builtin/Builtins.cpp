@@ -6,6 +6,7 @@ namespace viscera {
 void registerMechanicalObject(Registry&);
 void registerMasses(Registry&);
 void registerConstraints(Registry&);
+void registerRestShapeSprings(Registry&);
 void registerTopologies(Registry&);
 void registerTetrahedronFEM(Registry&);
 void registerVTKExporter(Registry&);
@@ -23,6 +24,7 @@ void registerBuiltins(Registry& r) {
   registerMechanicalObject(r);
   registerMasses(r);
   registerConstraints(r);
+  registerRestShapeSprings(r);
   registerTopologies(r);
   registerTetrahedronFEM(r);
   registerVTKExporter(r);

@@ -108,7 +108,7 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   auto a = std::make_shared<AuditArgs>();
   auto* cmd = app.add_subcommand("audit", "find where a scene disagrees with a dataset and which missing effect explains it");
   cmd->footer(
-      "Effects: gravity, youngModulus, poissonRatio, damping, friction, instrumentRadius. Outputs: OUT/report.md,\n"
+      "Effects: gravity, youngModulus, poissonRatio, damping, friction, instrumentRadius, elasticFoundation.\nOutputs: OUT/report.md, "
       "OUT/report.json and OUT/<scene>_audited.xml (the scene with the effects found). See docs/user-guide.md,\n"
       "\"Model audit\".");
   cmd->add_option("scene", a->scene, "scene file whose instrument is driven by a TrajectoryDriver")->required();

@@ -15,6 +15,7 @@ std::unique_ptr<Effect> makePoissonRatio();
 std::unique_ptr<Effect> makeDamping();
 std::unique_ptr<Effect> makeFriction();
 std::unique_ptr<Effect> makeInstrumentRadius();
+std::unique_ptr<Effect> makeElasticFoundation();
 
 std::vector<std::unique_ptr<Effect>> effectLibrary() {
   std::vector<std::unique_ptr<Effect>> v;
@@ -24,6 +25,7 @@ std::vector<std::unique_ptr<Effect>> effectLibrary() {
   v.push_back(makeDamping());
   v.push_back(makeFriction());
   v.push_back(makeInstrumentRadius());
+  v.push_back(makeElasticFoundation());
   return v;
 }
 

@@ -21,8 +21,8 @@ struct Planted {
   bool wrench;
 };
 
-study::AuditReport auditPlanted(const Planted& p, const TempDir& dir) {
-  std::vector<std::string> args = {"dataset", "make", studyData("block.xml"), "--out", dir / "data", "--time", "3",
+study::AuditReport auditPlanted(const Planted& p, const TempDir& dir, const std::string& truthScene = studyData("block.xml")) {
+  std::vector<std::string> args = {"dataset", "make", truthScene, "--out", dir / "data", "--time", "3",
                                    "--position", "20 -200 250", "--look-at", "20 10 10", "--quiet"};
   if (!p.set.empty()) args.insert(args.end(), {"--set", p.set});
   if (p.wrench) args.insert(args.end(), {"--force-noise", "0.001 N"});
@@ -86,6 +86,24 @@ TEST_P(PlantedEffect, IsNamedFirstAndFitted) {
   // The augmented scene carries the effect, marked.
   const std::string xml = viscera::io::formatScene(r.augmented);
   EXPECT_NE(xml.find("audit effect '" + std::string(key) + "'"), std::string::npos) << xml;
+}
+
+// The truth rests on springs (RestShapeSpringsForceField, 20 N/m per node) where the audited
+// scene fixes its bottom.
+TEST(Audit, AnElasticFoundationIsNamedAndFitted) {
+  TempDir dir;
+  std::string xml = slurp(studyData("block.xml"));
+  const std::string fixed = "<FixedConstraint indices=\"@bottom.indices\"/>";
+  xml.replace(xml.find(fixed), fixed.size(), "<RestShapeSpringsForceField points=\"@bottom.indices\" stiffness=\"20 N/m\"/>");
+  writeText(dir.path() / "truth.xml", xml);
+  fs::copy_file(studyData("poke.csv"), dir.path() / "poke.csv");
+  const study::AuditReport r = auditPlanted({"elasticFoundation", "", true}, dir, dir / "truth.xml");
+  ASSERT_FALSE(r.rounds.empty()) << summary(r);
+  ASSERT_TRUE(r.rounds.front().confirmed) << summary(r);
+  const study::EffectFit& f = r.rounds.front().candidates.front();
+  EXPECT_EQ(f.effect, "elasticFoundation") << summary(r);
+  EXPECT_NEAR(f.values.at(0), 20000, 4000);  // 20 N/m in g/s^2
+  EXPECT_NE(viscera::io::formatScene(r.augmented).find("RestShapeSpringsForceField"), std::string::npos);
 }
 
 INSTANTIATE_TEST_SUITE_P(Audit, PlantedEffect,
