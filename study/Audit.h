@@ -11,7 +11,8 @@
 //  3. Rank by held-out BIC (held-out improvement, penalised per parameter); the winner must beat
 //     the nominal scene in a one-sided paired test at level alpha / m (Bonferroni-Holm over the m
 //     candidates tried), or nothing is named.
-//  4. Add the winner and repeat while the held-out gap stands above 1.5 x the noise floor.
+//  4. Add the winner and repeat while the held-out gap stands above the noise floor; the result is
+//     at the noise level when the gap is within 1.5 x the floor.
 #pragma once
 
 #include <functional>
@@ -84,6 +85,7 @@ struct AuditReport {
   double remainingGapMm = 0;          // held-out mean per-frame RMS distance at the end
   bool atNoiseLevel = false;
   SceneDesc augmented;
+  std::optional<RigidTransform> cloudCorrection;  // the registration effect's, when found (scene frame)
   double splitTime = 0;               // training frames end here (dataset time)
   std::vector<std::string> notes;     // e.g. effects that do not apply, fits that failed
 };

@@ -2,6 +2,7 @@
 // effect explains it, and the scene with it added (study/Audit.h). Writes OUT/report.json,
 // OUT/report.md and OUT/augmented.xml; nothing is written when the inputs are unusable.
 #include "apps/viscera/AuditCommand.h"
+#include "apps/viscera/Gnuplot.h"
 
 #include <CLI/CLI.hpp>
 #include <tbb/info.h>
@@ -9,12 +10,15 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <sstream>
 
 #include "builtin/Builtins.h"
 #include "core/Error.h"
 #include "core/Files.h"
+#include "core/Text.h"
 #include "io/scene/SceneReader.h"
 #include "io/scene/SceneWriter.h"
+#include "io/scene/Transform.h"
 #include "study/Audit.h"
 
 namespace viscera {
@@ -27,7 +31,7 @@ struct AuditArgs {
   std::vector<std::string> effects, sets;
   int jobs = 1, rounds = 3, points = 2000, maxEvals = 16;
   double train = 0.6, alpha = 0.05;
-  bool noWrench = false, quiet = false;
+  bool noWrench = false, quiet = false, noPlot = false;
 };
 
 struct Log : study::AuditProgress {
@@ -37,6 +41,60 @@ struct Log : study::AuditProgress {
   }
   bool quiet_;
 };
+
+// residual.csv: each frame's RMS residual (mm) before and after, and its phase.
+std::string residualTable(const study::AuditReport& r) {
+  std::ostringstream t;
+  t << "time,before_mm,after_mm,phase\n";
+  const auto& b = r.before;
+  const auto& a = r.after;
+  for (size_t k = 0; k < b.frameTimes.size(); ++k) {
+    t << formatNumber(b.frameTimes[k]) << "," << formatNumber(b.frameRmsMm[k]) << ",";
+    if (k < a.frameTimes.size() && a.frameTimes[k] == b.frameTimes[k]) t << formatNumber(a.frameRmsMm[k]);
+    t << "," << study::Localisation::phaseName(b.framePhases[k]) << "\n";
+  }
+  return t.str();
+}
+
+// audit.gp: the residual over time before and after, with the noise floor and the training /
+// held-out split; below it the first round's ranking (held-out BIC change per candidate).
+std::string plotScript(const study::AuditReport& r) {
+  std::ostringstream g;
+  g << "# The model audit's residual over time and its ranking, written by viscera audit.\n"
+    << "# Re-plot with: gnuplot audit.gp (writes audit.png next to residual.csv)\n"
+    << "if (!exists(\"outfile\")) outfile = \"audit.png\"\n"
+    << "set terminal pngcairo size 1000,900 font \",10\"\n"
+    << "set output outfile\n"
+    << "set datafile separator \",\"\n"
+    << "set multiplot layout 2,1\n"
+    << "set grid\n"
+    << "set title \"RMS cloud -> surface distance per frame\"\n"
+    << "set xlabel \"time (s)\"\n"
+    << "set ylabel \"mm\"\n"
+    << "set yrange [0:*]\n"
+    << "set key bottom right\n"
+    << "set arrow from first " << r.splitTime << ", graph 0 to first " << r.splitTime
+    << ", graph 1 nohead dt 3 lc rgb \"gray60\"\n"
+    << "set label \"held out ->\" at first " << r.splitTime << ", graph 0.95 offset 0.5,0 tc rgb \"gray40\"\n"
+    << "plot \"residual.csv\" skip 1 using 1:2 with lines lw 1.2 lc rgb \"red\" title \"nominal scene\", \\\n"
+    << "     \"residual.csv\" skip 1 using 1:3 with lines lw 1.2 lc rgb \"blue\" title \"augmented scene\", \\\n"
+    << "     " << r.noiseFloorMm << " with lines dt 2 lc rgb \"gray40\" title \"noise floor\"\n"
+    << "unset arrow\nunset label\nset autoscale y\n";
+  if (!r.rounds.empty() && !r.rounds.front().candidates.empty()) {
+    const auto& c = r.rounds.front().candidates;
+    g << "set title \"Round 1: held-out BIC change per effect (negative favours the effect)\"\n"
+      << "set xlabel \"\"\nset ylabel \"delta BIC\"\n"
+      << "set style fill solid 0.6\nset boxwidth 0.6\nunset key\n"
+      << "set xtics rotate by -30 noenhanced\n"
+      << "set datafile separator whitespace\n"
+      << "$ranking << EOD\n";
+    for (size_t k = 0; k < c.size(); ++k) g << k << " " << c[k].effect << " " << (c[k].status == "ok" ? c[k].deltaBic : 0.0) << "\n";
+    g << "EOD\n"
+      << "plot $ranking using 1:3:xtic(2) with boxes lc rgb \"steelblue\"\n";
+  }
+  g << "unset multiplot\n";
+  return g.str();
+}
 
 int audit(const AuditArgs& a) {
   SceneDesc scene = io::readScene(a.scene);
@@ -88,17 +146,29 @@ int audit(const AuditArgs& a) {
                        for (const auto& f : r.found) s += (s.empty() ? "" : ", ") + f;
                        return s;
                      }()));
+  if (r.cloudCorrection) {
+    // The registration effect: the dataset's camera -> scene transform, corrected.
+    const RigidTransform corrected = data.data.cameraToScene ? *r.cloudCorrection * *data.data.cameraToScene : *r.cloudCorrection;
+    writeTransform((dir / "camera_to_scene_corrected.txt").string(), corrected,
+                   "camera -> scene corrected by viscera audit (registration effect)");
+  }
+  writeFileAtomic((dir / "residual.csv").string(), residualTable(r));
   writeFileAtomic((dir / "report.json").string(),
                   study::auditJson(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
   writeFileAtomic((dir / "report.md").string(),
                   study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
+  if (!a.noPlot) {  // last: a missing gnuplot costs the picture only
+    writeFileAtomic((dir / "audit.gp").string(), plotScript(r));
+    plotWithGnuplot(dir, "audit.gp", "audit.png");
+  }
   std::cout << r.verdict;
   if (!r.found.empty()) {
     std::cout << ":";
     for (const auto& f : r.found) std::cout << " " << f;
   }
   std::cout << " (noise floor " << r.noiseFloorMm << " mm, remaining gap " << r.remainingGapMm << " mm)\n";
-  std::cerr << "wrote " << (dir / "report.md").string() << ", report.json and " << augmentedPath.string() << "\n";
+  std::cerr << "wrote " << (dir / "report.md").string() << ", report.json, residual.csv"
+            << (a.noPlot ? "" : ", audit.png") << " and " << augmentedPath.string() << "\n";
   return kExitOk;
 }
 
@@ -108,7 +178,8 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   auto a = std::make_shared<AuditArgs>();
   auto* cmd = app.add_subcommand("audit", "find where a scene disagrees with a dataset and which missing effect explains it");
   cmd->footer(
-      "Effects: gravity, youngModulus, poissonRatio, damping, friction, instrumentRadius, elasticFoundation.\nOutputs: OUT/report.md, "
+      "Effects: gravity, youngModulus, poissonRatio, damping, friction, instrumentRadius, elasticFoundation,\n"
+      "registration. Outputs: OUT/report.md, "
       "OUT/report.json and OUT/<scene>_audited.xml (the scene with the effects found). See docs/user-guide.md,\n"
       "\"Model audit\".");
   cmd->add_option("scene", a->scene, "scene file whose instrument is driven by a TrajectoryDriver")->required();
@@ -124,6 +195,7 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--set", a->sets, "set a scene attribute before the audit, ADDRESS=VALUE; repeatable");
   cmd->add_flag("--no-wrench", a->noWrench, "score the clouds only, even when the dataset has a wrench");
   cmd->add_flag("--quiet", a->quiet, "no progress lines");
+  cmd->add_flag("--no-plot", a->noPlot, "do not run gnuplot");
   cmd->callback([a, &action] { action = [a] { return audit(*a); }; });
 }
 

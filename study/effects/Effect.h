@@ -46,8 +46,10 @@ class Effect {
   // Applies it with `values` (one per parameter, in their order) to `desc`, marking each element
   // it changes or adds with a comment (ElementDesc::comment).
   virtual void apply(SceneDesc& desc, const std::vector<double>& values, const AuditScene& scene) const = 0;
-  // A rigid correction of the clouds instead of a scene edit (registration).
-  virtual std::optional<RigidTransform> cloudCorrection(const std::vector<double>& values) const { return std::nullopt; }
+  // A rigid correction of the clouds (scene frame) instead of a scene edit (registration).
+  virtual std::optional<RigidTransform> cloudCorrection(const std::vector<double>& values, const AuditScene& scene) const {
+    return std::nullopt;
+  }
 };
 
 // Every effect of the library, in report order.

@@ -16,6 +16,7 @@ std::unique_ptr<Effect> makeDamping();
 std::unique_ptr<Effect> makeFriction();
 std::unique_ptr<Effect> makeInstrumentRadius();
 std::unique_ptr<Effect> makeElasticFoundation();
+std::unique_ptr<Effect> makeRegistration();
 
 std::vector<std::unique_ptr<Effect>> effectLibrary() {
   std::vector<std::unique_ptr<Effect>> v;
@@ -26,6 +27,7 @@ std::vector<std::unique_ptr<Effect>> effectLibrary() {
   v.push_back(makeFriction());
   v.push_back(makeInstrumentRadius());
   v.push_back(makeElasticFoundation());
+  v.push_back(makeRegistration());
   return v;
 }
 

@@ -3,9 +3,11 @@
 // is named first, fitted, and the control names nothing.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 
 #include "io/scene/SceneWriter.h"
+#include "io/scene/Transform.h"
 #include "study/Audit.h"
 #include "tests/apps/cli_helpers.h"
 #include "tests/study/study_helpers.h"
@@ -104,6 +106,30 @@ TEST(Audit, AnElasticFoundationIsNamedAndFitted) {
   EXPECT_EQ(f.effect, "elasticFoundation") << summary(r);
   EXPECT_NEAR(f.values.at(0), 20000, 4000);  // 20 N/m in g/s^2
   EXPECT_NE(viscera::io::formatScene(r.augmented).find("RestShapeSpringsForceField"), std::string::npos);
+}
+
+// The dataset's camera -> scene transform is off by 1.5 degrees and 1.4 mm: the audit names the
+// registration and its correction undoes the error at the tissue to within a millimetre.
+TEST(Audit, ARegistrationErrorIsNamedAndCorrected) {
+  TempDir dir;
+  const RunResult made = runViscera({"dataset", "make", studyData("block.xml"), "--out", dir / "data", "--time", "3",
+                                     "--position", "20 -200 250", "--look-at", "20 10 10", "--force-noise", "0.001 N",
+                                     "--quiet"});
+  ASSERT_EQ(made.rc, 0) << made;
+  const std::string path = dir / "data/camera_to_scene.txt";
+  viscera::RigidTransform error(Eigen::Translation3d(1.0, -0.8, 0.5) * Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d::UnitZ()));
+  viscera::writeTransform(path, error * viscera::readTransform(path));
+  study::AuditOptions o;
+  o.jobs = 2;
+  const study::PreparedDataset data = study::prepareDataset(dir / "data", o.replay.score);
+  const study::AuditReport r = study::runAudit(blockScene(), data, o);
+  ASSERT_FALSE(r.found.empty()) << summary(r);
+  EXPECT_EQ(r.found.front(), "registration") << summary(r);
+  ASSERT_TRUE(r.cloudCorrection.has_value());
+  for (const Eigen::Vector3d p : {Eigen::Vector3d(0, 0, 20), Eigen::Vector3d(40, 0, 20), Eigen::Vector3d(40, 20, 20),
+                                  Eigen::Vector3d(0, 20, 0)})
+    EXPECT_LT((*r.cloudCorrection * (error * p) - p).norm(), 1.0) << p.transpose();
+  EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
 }
 
 INSTANTIATE_TEST_SUITE_P(Audit, PlantedEffect,
