@@ -226,7 +226,13 @@ class Auditor {
     SceneDesc current = nominal;   // what is replayed
     SceneDesc augmented = scene;   // what the user gets: the scene as written, plus the effects
     std::vector<std::string> remaining = effectKeys();
-    Items heldBase = itemsOf(base, split_, kInf, scales_, wrench_);
+    const AuditScene asNominal = as;
+    const Items heldNominal = itemsOf(base, split_, kInf, scales_, wrench_);
+    Items heldBase = heldNominal;
+    // What the rounds found: each effect, its parameters on the nominal scene and its values.
+    std::vector<const Effect*> foundEffects;
+    std::vector<std::vector<EffectParam>> foundParams;
+    std::vector<double> foundValues;
     ReplayScore last = base;
     for (int round = 0; round < o_.rounds; ++round) {
       // Candidates are tried while anything stands above the noise; the confirmation test, not
@@ -252,13 +258,20 @@ class Auditor {
         break;
       }
       const Effect& e = effect(best.effect);
-      e.apply(current, best.values, as);
-      e.apply(augmented, best.values, as);
-      if (auto c = e.cloudCorrection(best.values, as)) correction_ = compose(*c);
       r.heldoutAfterMm = best.heldoutMmAfter;
       rep.found.push_back(best.effect);
       remaining.erase(std::find(remaining.begin(), remaining.end(), best.effect));
+      foundEffects.push_back(&e);
+      foundParams.push_back(r.candidates.front().params);
+      foundValues.insert(foundValues.end(), r.candidates.front().values.begin(), r.candidates.front().values.end());
       rep.rounds.push_back(std::move(r));
+      if (foundEffects.size() > 1) refitTogether(foundEffects, foundParams, foundValues, nominal, asNominal, heldNominal);
+      // The scene and the clouds' correction with every effect found at its current values.
+      current = nominal;
+      augmented = scene;
+      correction_ = applyFound(foundEffects, foundParams, foundValues, foundEffects.size(), current, asNominal);
+      applyFound(foundEffects, foundParams, foundValues, foundEffects.size(), augmented, asNominal);
+      if (foundEffects.size() > 1) rep.jointValues = foundValues;
       last = replayFull(current);
       heldBase = itemsOf(last, split_, kInf, scales_, wrench_);
     }
@@ -337,6 +350,47 @@ class Auditor {
     return v[v.size() / 2];
   }
 
+  // Applies the found effects to `desc`, all but effect `skip` (skip = count: none skipped), and
+  // returns their cloud correction.
+  static std::optional<RigidTransform> applyFound(const std::vector<const Effect*>& effects,
+                                                  const std::vector<std::vector<EffectParam>>& params,
+                                                  const std::vector<double>& values, size_t skip, SceneDesc& desc,
+                                                  const AuditScene& as) {
+    std::optional<RigidTransform> correction;
+    size_t at = 0;
+    for (size_t i = 0; i < effects.size(); ++i) {
+      const std::vector<double> v(values.begin() + static_cast<long>(at), values.begin() + static_cast<long>(at + params[i].size()));
+      at += params[i].size();
+      if (i == skip) continue;
+      effects[i]->apply(desc, v, as);
+      if (auto c = effects[i]->cloudCorrection(v, as)) correction = correction ? *c * *correction : *c;
+    }
+    return correction;
+  }
+
+  // Backfitting: each effect found is refitted alone with the others at their current values, in
+  // two passes. An effect fitted before the next was found has absorbed part of it; a joint
+  // minimiser over all their parameters stalls on the contact's kinks where these 1-D and small
+  // fits do not.
+  void refitTogether(const std::vector<const Effect*>& effects, const std::vector<std::vector<EffectParam>>& params,
+                     std::vector<double>& values, const SceneDesc& nominal, const AuditScene& as, const Items& heldNominal) {
+    for (int pass = 0; pass < 2; ++pass) {
+      size_t at = 0;
+      for (size_t i = 0; i < effects.size(); ++i) {
+        say("refit " + effects[i]->key() + " with the others found (pass " + std::to_string(pass + 1) + ")");
+        SceneDesc others = nominal;
+        correction_ = applyFound(effects, params, values, i, others, as);
+        std::vector<EffectParam> start = params[i];
+        for (size_t j = 0; j < start.size(); ++j) start[j].nominal = values[at + j];
+        const EffectFit f = fit(*effects[i], start, others, as, heldNominal);
+        if (f.status == "ok")
+          for (size_t j = 0; j < start.size(); ++j) values[at + j] = f.values[j];
+        at += start.size();
+      }
+    }
+    correction_.reset();
+  }
+
   // Whether the held-out gaps are within `factor` x their noise: the cloud gap against the depth
   // noise and, with a wrench, the RMS force error against the force measured out of contact.
   bool atNoise(double gapMm, const ReplayScore& last, const AuditReport& rep, double factor) const {
@@ -413,8 +467,10 @@ class Auditor {
   }
 
   // Fits one effect on the training window, then scores the fit on the held-out window.
+  // `budget` replays at most (0: --max-evals).
   EffectFit fit(const Effect& e, const std::vector<EffectParam>& params, const SceneDesc& current, const AuditScene& as,
-                const Items& heldBase) const {
+                const Items& heldBase, int budget = 0) const {
+    const int evaluations = budget > 0 ? budget : o_.maxEvaluations;
     EffectFit f;
     f.effect = e.key();
     f.what = e.what();
@@ -461,14 +517,14 @@ class Auditor {
     }
     f.trainBefore = evaluate(s0);
     if (d == 1) {
-      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(1, o_.maxEvaluations - 1));
+      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(1, evaluations - 1));
       boost::math::tools::brent_find_minima([&](double s) { return evaluate({s - 1}); }, 1.0, 2.0, 12, it);
     } else {
       nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
       opt.set_lower_bounds(std::vector<double>(d, 0.0));
       opt.set_upper_bounds(std::vector<double>(d, 1.0));
       opt.set_xtol_abs(1e-3);
-      opt.set_maxeval(std::max(2 * static_cast<int>(d) + 2, o_.maxEvaluations - 1));
+      opt.set_maxeval(std::max(2 * static_cast<int>(d) + 2, evaluations - 1));
       std::function<double(const std::vector<double>&)> fn = evaluate;
       opt.set_min_objective(
           [](const std::vector<double>& s, std::vector<double>&, void* p) {
@@ -613,6 +669,17 @@ std::string auditJson(const AuditReport& r, const std::string& scene, const std:
                       {"candidates", cands}});
   }
   j["rounds"] = rounds;
+  if (!r.jointValues.empty()) {
+    Json jv = Json::object();
+    size_t at = 0;
+    for (const auto& rd : r.rounds) {
+      if (!rd.confirmed) continue;
+      const EffectFit& w = rd.candidates.front();
+      for (const auto& p : w.params)
+        if (at < r.jointValues.size()) jv[w.effect + "." + p.name] = r.jointValues[at++];
+    }
+    j["refit"] = jv;
+  }
   Json cands = Json::array();
   for (const auto& rd : r.rounds)
     for (const auto& c : rd.candidates) cands.push_back(fitJson(c));
@@ -689,6 +756,17 @@ std::string auditMarkdown(const AuditReport& r, const std::string& scene, const 
         << f.heldoutMmBefore << " -> " << f.heldoutMmAfter << " | " << f.deltaBic << " | " << f.pValue << " | "
         << (f.identifiable ? "yes" : "no: flat over its range") << " |\n";
     }
+  }
+  if (!r.jointValues.empty()) {
+    m << "\n## Refitted together\n\nEach effect found, refitted with the others at their values (an effect fitted alone "
+         "absorbs part of the one found after it): ";
+    size_t at = 0;
+    for (const auto& rd : r.rounds) {
+      if (!rd.confirmed) continue;
+      for (const auto& p : rd.candidates.front().params)
+        if (at < r.jointValues.size()) m << (at ? ", " : "") << rd.candidates.front().effect << "." << p.name << " " << fmt(r.jointValues[at++]);
+    }
+    m << ".\n";
   }
   if (!r.notes.empty()) {
     m << "\n## Notes\n\n";

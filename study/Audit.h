@@ -11,11 +11,13 @@
 //  3. Rank by held-out BIC (held-out improvement, penalised per parameter); the winner must beat
 //     the nominal scene in a one-sided paired test at level alpha / m (Bonferroni-Holm over the m
 //     candidates tried), or nothing is named.
-//  4. Add the winner and repeat while the held-out gap stands above the noise floor; the result is
-//     at the noise level when the gap is within 1.5 x the floor.
+//  4. Add the winner and repeat while the held-out gap stands above the noise floor; from the
+//     second effect on, everything found is refitted together (backfitting). The result is at the noise level
+//     when the gap is within 1.5 x the floor.
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -81,6 +83,7 @@ struct AuditReport {
   std::string verdict;                // "effects found" or "no missing effect detected"
   std::vector<std::string> found;     // effect keys, in order added
   std::vector<AuditRound> rounds;
+  std::vector<double> jointValues;  // with two effects or more: their parameters refitted together, in round order
   Localisation before, after;
   double remainingGapMm = 0;          // held-out mean per-frame RMS distance at the end
   bool atNoiseLevel = false;

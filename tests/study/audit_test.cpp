@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 
 #include "io/scene/SceneWriter.h"
@@ -129,6 +130,29 @@ TEST(Audit, ARegistrationErrorIsNamedAndCorrected) {
   for (const Eigen::Vector3d p : {Eigen::Vector3d(0, 0, 20), Eigen::Vector3d(40, 0, 20), Eigen::Vector3d(40, 20, 20),
                                   Eigen::Vector3d(0, 20, 0)})
     EXPECT_LT((*r.cloudCorrection * (error * p) - p).norm(), 1.0) << p.transpose();
+  EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
+}
+
+// Two effects planted (a larger tip and a stiffer block): both named, over two rounds, and the
+// joint refit brings both values within 20 %.
+TEST(Audit, TwoHiddenEffectsAreBothNamed) {
+  TempDir dir;
+  const RunResult made = runViscera({"dataset", "make", studyData("block.xml"), "--out", dir / "data", "--time", "3",
+                                     "--set", "instrument/tip.radius=6.5", "--set", "block/fem.youngModulus=10 kPa",
+                                     "--position", "20 -200 250", "--look-at", "20 10 10", "--force-noise", "0.001 N",
+                                     "--quiet"});
+  ASSERT_EQ(made.rc, 0) << made;
+  study::AuditOptions o;
+  o.jobs = 2;
+  const study::PreparedDataset data = study::prepareDataset(dir / "data", o.replay.score);
+  const study::AuditReport r = study::runAudit(blockScene(), data, o);
+  ASSERT_EQ(r.found.size(), 2u) << summary(r);
+  EXPECT_NE(std::find(r.found.begin(), r.found.end(), "instrumentRadius"), r.found.end()) << summary(r);
+  EXPECT_NE(std::find(r.found.begin(), r.found.end(), "youngModulus"), r.found.end()) << summary(r);
+  ASSERT_EQ(r.jointValues.size(), 2u);
+  const bool radiusFirst = r.found.front() == "instrumentRadius";
+  EXPECT_NEAR(r.jointValues[radiusFirst ? 0 : 1], 6.5, 1.3);
+  EXPECT_NEAR(r.jointValues[radiusFirst ? 1 : 0], 2.0, 0.4);
   EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
 }
 
