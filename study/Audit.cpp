@@ -6,6 +6,7 @@
 #include <boost/math/distributions/students_t.hpp>
 #include <boost/math/tools/minima.hpp>
 #include <cmath>
+#include <filesystem>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <nlopt.hpp>
@@ -197,6 +198,7 @@ class Auditor {
 
   AuditReport run(const SceneDesc& scene) {
     AuditReport rep;
+    effectKeys();  // an unknown --effects key is an error before anything runs
     const SceneDesc nominal = replayDescription(scene, data_.data);
     AuditScene as = describe(nominal);
     scales_.mm = 1e-3 / as.units.siOf(Dimension::length());
@@ -209,7 +211,7 @@ class Auditor {
     say("noise: estimating the depth noise from the clouds");
     rep.noiseFloorMm = depthNoise() / scales_.mm;
     say("nominal: replaying the dataset through the scene");
-    ReplayScore base = replayFull(nominal);
+    ReplayScore base = replayFull(nominal, folder(o_.residualsBefore));
     if (!base.ok()) throw Error(SourceLoc{scene.file}, "the nominal scene does not replay the dataset: " + base.reason);
     rep.before = localise(base, scales_, o_.alpha, rep.noiseFloorMm);
     if (wrench_) {
@@ -275,6 +277,7 @@ class Auditor {
       last = replayFull(current);
       heldBase = itemsOf(last, split_, kInf, scales_, wrench_);
     }
+    if (!o_.residualsAfter.empty()) last = replayFull(current, folder(o_.residualsAfter));
     rep.after = localise(last, scales_, o_.alpha, rep.noiseFloorMm);
     rep.remainingGapMm = heldBase.mmMean();
     rep.atNoiseLevel = atNoise(rep.remainingGapMm, last, rep, 1.5);
@@ -391,6 +394,15 @@ class Auditor {
     correction_.reset();
   }
 
+  // A residual folder, created (empty: none).
+  static std::string folder(const std::string& path) {
+    if (path.empty()) return path;
+    std::error_code ec;
+    std::filesystem::create_directories(path, ec);
+    if (ec) throw Error(SourceLoc{path}, "cannot create the folder: " + ec.message());
+    return path;
+  }
+
   // Whether the held-out gaps are within `factor` x their noise: the cloud gap against the depth
   // noise and, with a wrench, the RMS force error against the force measured out of contact.
   bool atNoise(double gapMm, const ReplayScore& last, const AuditReport& rep, double factor) const {
@@ -406,10 +418,11 @@ class Auditor {
     return cloud && force;
   }
 
-  ReplayScore replayFull(const SceneDesc& desc) const {
+  ReplayScore replayFull(const SceneDesc& desc, const std::string& residuals = "") const {
     ReplayOptions ro = o_.replay;
     ro.regions = true;
     ro.cloudCorrection = correction_;
+    ro.residualFolder = residuals;
     return replay(desc, data_, ro);
   }
 

@@ -34,6 +34,9 @@ struct AuditOptions {
   int maxEvaluations = 16;         // replays per fit at most
   double alpha = 0.05;             // family-wise error rate of the confirmation test
   ReplayOptions replay;            // scoring; threads per replay
+  // When set, the nominal and the final replays write their per-frame residuals here for
+  // ParaView (ReplayOptions::residualFolder).
+  std::string residualsBefore, residualsAfter;
 };
 
 // Residual statistics of one region in one phase, over the frames that have points there.

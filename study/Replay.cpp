@@ -19,6 +19,7 @@
 #include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
+#include "io/mesh/Mesh.h"
 #include "observation/CloudDistance.h"
 #include "observation/Tissue.h"
 
@@ -170,6 +171,7 @@ class Scorer : public RunObserver {
       fs.points = result_.stats.count;
       if (fs.points > 0) fs.value = result_.stats.rms;
       if (options_.regions) fs.regions = regions(x, *cloud);
+      if (!options_.residualFolder.empty()) writeResiduals(k, fs.time, x, *cloud);
     }
     frames.push_back(std::move(fs));
   }
@@ -183,6 +185,18 @@ class Scorer : public RunObserver {
     s.value = (simulated - data_.data.wrench->force[j]).norm();
     samples.push_back(s);
   }
+  void writeResiduals(size_t k, double t, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) {
+    char name[32];
+    std::snprintf(name, sizeof name, "_%06zu.vtp", k);
+    const fs::path dir = options_.residualFolder;
+    obs::writeCloudResiduals((dir / ("cloud" + std::string(name))).string(), cloud, result_);
+    obs::writeSurfaceResiduals((dir / ("surface" + std::string(name))).string(), x, distance_->triangles(), result_);
+    cloudFiles_.push_back({t, "cloud" + std::string(name)});
+    surfaceFiles_.push_back({t, "surface" + std::string(name)});
+    io::writePvd((dir / "cloud.pvd").string(), cloudFiles_);
+    io::writePvd((dir / "surface.pvd").string(), surfaceFiles_);
+  }
+
   // The frame's residuals per region (result_ holds its distances).
   std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) const {
     std::vector<RegionResiduals> out(kRegionCount);
@@ -215,6 +229,7 @@ class Scorer : public RunObserver {
   obs::DistanceResult result_;
   Eigen::Matrix3Xd prev_, cur_, mix_, corrected_;
   const SphereCollisionModel* sphere_ = nullptr;
+  std::vector<std::pair<double, std::string>> cloudFiles_, surfaceFiles_;
   double force_ = 0;
   Eigen::Vector3d fPrev_ = Eigen::Vector3d::Zero();
   double tPrev_ = 0, deadline_ = 0;

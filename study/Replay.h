@@ -61,6 +61,10 @@ struct ReplayOptions {
   std::optional<RigidTransform> cloudCorrection;
   // Keep per frame the residuals of each surface region (FrameScore::regions).
   bool regions = false;
+  // When set, each scored frame's residuals go to this folder for ParaView: cloud_<k>.vtp (points
+  // with distance, residual, signedDistance) and surface_<k>.vtp (the simulated surface with the
+  // mean residual per vertex), indexed by cloud.pvd and surface.pvd. The folder must exist.
+  std::string residualFolder;
 };
 
 // Where on the tissue a cloud point lies: by the outward normal of its closest triangle (the

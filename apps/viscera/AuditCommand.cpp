@@ -3,6 +3,7 @@
 // OUT/report.md and OUT/augmented.xml; nothing is written when the inputs are unusable.
 #include "apps/viscera/AuditCommand.h"
 #include "apps/viscera/Gnuplot.h"
+#include "apps/viscera/Html.h"
 
 #include <CLI/CLI.hpp>
 #include <tbb/info.h>
@@ -31,7 +32,7 @@ struct AuditArgs {
   std::vector<std::string> effects, sets;
   int jobs = 1, rounds = 3, points = 2000, maxEvals = 16;
   double train = 0.6, alpha = 0.05;
-  bool noWrench = false, quiet = false, noPlot = false;
+  bool noWrench = false, quiet = false, noPlot = false, noResiduals = false;
 };
 
 struct Log : study::AuditProgress {
@@ -116,11 +117,17 @@ int audit(const AuditArgs& a) {
   const fs::path parent = fs::absolute(dir).parent_path();
   if (!fs::is_directory(parent, ec)) throw Error(SourceLoc{a.out}, "--out: the folder " + parent.string() + " does not exist");
 
+  // The scene and the dataset are usable (read above); the residual series are written as the
+  // audit replays.
+  fs::create_directories(dir, ec);
+  if (ec) throw Error(SourceLoc{a.out}, "--out: cannot create the folder: " + ec.message());
+  if (!a.noResiduals) {
+    o.residualsBefore = (dir / "residuals" / "before").string();
+    o.residualsAfter = (dir / "residuals" / "after").string();
+  }
   Log log(a.quiet);
   const study::AuditReport r = study::runAudit(scene, data, o, &log);
 
-  fs::create_directories(dir, ec);
-  if (ec) throw Error(SourceLoc{a.out}, "--out: cannot create the folder: " + ec.message());
   // The augmented scene goes to OUT; report.json names it.
   SceneDesc augmented = r.augmented;
   const fs::path sceneDir = fs::absolute(a.scene).parent_path();
@@ -157,6 +164,8 @@ int audit(const AuditArgs& a) {
                   study::auditJson(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
   writeFileAtomic((dir / "report.md").string(),
                   study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
+  const std::string md = study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string());
+  writeFileAtomic((dir / "report.html").string(), markdownPage("Model audit", md, a.noPlot ? "" : "audit.png"));
   if (!a.noPlot) {  // last: a missing gnuplot costs the picture only
     writeFileAtomic((dir / "audit.gp").string(), plotScript(r));
     plotWithGnuplot(dir, "audit.gp", "audit.png");
@@ -167,7 +176,7 @@ int audit(const AuditArgs& a) {
     for (const auto& f : r.found) std::cout << " " << f;
   }
   std::cout << " (noise floor " << r.noiseFloorMm << " mm, remaining gap " << r.remainingGapMm << " mm)\n";
-  std::cerr << "wrote " << (dir / "report.md").string() << ", report.json, residual.csv"
+  std::cerr << "wrote " << (dir / "report.md").string() << ", report.html, report.json, residual.csv"
             << (a.noPlot ? "" : ", audit.png") << " and " << augmentedPath.string() << "\n";
   return kExitOk;
 }
@@ -196,6 +205,7 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_flag("--no-wrench", a->noWrench, "score the clouds only, even when the dataset has a wrench");
   cmd->add_flag("--quiet", a->quiet, "no progress lines");
   cmd->add_flag("--no-plot", a->noPlot, "do not run gnuplot");
+  cmd->add_flag("--no-residuals", a->noResiduals, "do not write the per-frame residual series (OUT/residuals)");
   cmd->callback([a, &action] { action = [a] { return audit(*a); }; });
 }
 

@@ -149,6 +149,13 @@ TEST_F(SearchCli, AuditNamesTheModulusAndWritesARunnableScene) {
   for (const char* key : {"params", "heldout_before_mm", "heldout_after_mm", "runner_up", "margin", "p_value"})
     EXPECT_TRUE(round.contains(key)) << key;
   EXPECT_NE(slurp(tmp_.path() / "audit" / "report.md").find("Verdict: effects found"), std::string::npos);
+  const std::string html = slurp(tmp_.path() / "audit" / "report.html");
+  EXPECT_NE(html.find("<strong>Verdict: effects found</strong>"), std::string::npos);
+  EXPECT_NE(html.find("<img src=\"audit.png\""), std::string::npos);
+  EXPECT_GT(fs::file_size(tmp_.path() / "audit" / "audit.png"), 1000u);
+  for (const char* series : {"before", "after"})
+    for (const char* pvd : {"cloud.pvd", "surface.pvd"})
+      EXPECT_TRUE(fs::exists(tmp_.path() / "audit" / "residuals" / series / pvd)) << series << "/" << pvd;
   const std::string scene = j["augmented_scene"].get<std::string>();
   const RunResult check = runViscera({"run", scene, "--steps", "5", "--out", tmp_ / "run", "--quiet"});
   EXPECT_EQ(check.rc, 0) << check;
