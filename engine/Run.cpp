@@ -3,7 +3,10 @@
 #include <tbb/task_arena.h>
 #include <unistd.h>
 
+#include <signal.h>
+
 #include <algorithm>
+#include <csignal>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -69,18 +72,21 @@ RunResult runLoop(Simulation& sim, const RunOptions& o) {
       if (o.recordWrench) in.history.push_back(in.last);
     }
     for (RunObserver* ob : o.observers) ob->step(sim);
+    bool interrupted = false;
     for (RunObserver* ob : o.observers)
       if (auto why = ob->stopReason()) {
         r.stopReason = *why;
+        interrupted = ob->interrupts();
         break;
       }
-    if (!r.stopReason.empty()) break;
+    if (!r.stopReason.empty()) {
+      r.status = interrupted ? RunResult::Status::Interrupted : RunResult::Status::Stopped;
+      break;
+    }
   }
   sim.end();
   r.wallSeconds = now() - t0;
-  r.status = r.failure            ? RunResult::Status::Diverged
-             : r.stopReason.empty() ? RunResult::Status::Ok
-                                    : RunResult::Status::Stopped;
+  if (r.failure) r.status = RunResult::Status::Diverged;
   r.steps = sim.steps() - first;
   r.endTime = sim.time();
   for (const MechanicalObject* s : scene.all<MechanicalObject>())
@@ -146,7 +152,10 @@ std::string summaryJson(const RunResult& r, const std::string& scene) {
   auto vec = [](const Eigen::Vector3d& v) { return Json::array({v.x(), v.y(), v.z()}); };
   Json j;
   j["scene"] = scene;
-  j["status"] = r.ok() ? "ok" : r.failure ? "diverged" : "stopped";
+  j["status"] = r.ok()                                        ? "ok"
+                : r.failure                                   ? "diverged"
+                : r.status == RunResult::Status::Interrupted ? "interrupted"
+                                                              : "stopped";
   if (r.failure) j["failure"] = r.failure->str();
   if (!r.stopReason.empty()) j["stop_reason"] = r.stopReason;
   j["steps"] = r.steps;
@@ -229,5 +238,38 @@ void ProgressLine::step(const Simulation& sim) {
 void ProgressLine::end(const Simulation& sim, const RunResult& result) {
   if (enabled_ && done_ > 0) std::fprintf(stderr, "\n");
 }
+
+namespace {
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void onStopSignal(int sig) {
+  if (g_signal == sig) {  // the second one: the default way
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
+  g_signal = sig;
+}
+struct sigaction g_previousInt, g_previousTerm;
+}  // namespace
+
+SignalStop::SignalStop() {
+  g_signal = 0;
+  struct sigaction a {};
+  a.sa_handler = onStopSignal;
+  sigemptyset(&a.sa_mask);
+  sigaction(SIGINT, &a, &g_previousInt);
+  sigaction(SIGTERM, &a, &g_previousTerm);
+}
+
+SignalStop::~SignalStop() {
+  sigaction(SIGINT, &g_previousInt, nullptr);
+  sigaction(SIGTERM, &g_previousTerm, nullptr);
+}
+
+std::optional<std::string> SignalStop::stopReason() const {
+  if (g_signal == 0) return std::nullopt;
+  return std::string("interrupted by ") + (g_signal == SIGINT ? "SIGINT" : "SIGTERM");
+}
+
+int SignalStop::signal() const { return g_signal; }
 
 }  // namespace viscera

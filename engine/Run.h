@@ -31,8 +31,25 @@ class RunObserver {
   virtual void step(const Simulation& sim) {}
   virtual void end(const Simulation& sim, const RunResult& result) {}
   // Asked after every step: a reason ends the run there with status Stopped (a time budget, a
-  // batch that was cancelled, an interrupt).
+  // batch that was cancelled), or Interrupted when `interrupts()` (a signal).
   virtual std::optional<std::string> stopReason() const { return std::nullopt; }
+  virtual bool interrupts() const { return false; }
+};
+
+// Ends a run at the next step boundary when SIGINT or SIGTERM arrives, while it exists (the
+// previous handlers are restored after); the run's status is then Interrupted. A second signal of
+// the same kind ends the process the default way.
+class SignalStop : public RunObserver {
+ public:
+  SignalStop();
+  ~SignalStop() override;
+  SignalStop(const SignalStop&) = delete;
+  SignalStop& operator=(const SignalStop&) = delete;
+  std::optional<std::string> stopReason() const override;
+  bool interrupts() const override { return true; }
+  int signal() const;  // the signal received, 0 if none
+  // The shell's exit code for the signal received: 128 + signal (130 for SIGINT, 143 for SIGTERM).
+  int exitCode() const { return 128 + signal(); }
 };
 
 struct RunOptions {
@@ -58,10 +75,10 @@ struct WrenchSample {
 };
 
 struct RunResult {
-  enum class Status { Ok, Diverged, Stopped };
+  enum class Status { Ok, Diverged, Stopped, Interrupted };
   Status status = Status::Ok;
   std::optional<Diverged> failure;
-  std::string stopReason;               // Stopped: what an observer gave
+  std::string stopReason;               // Stopped or Interrupted: what the observer gave
   int steps = 0;                        // steps taken (by this run)
   double dt = 0, startTime = 0, endTime = 0;
   double wallSeconds = 0;

@@ -98,6 +98,9 @@ int cmdRun(const RunCommand& o) {
   ro.recordWrench = !o.wrench.empty();
   ProgressLine progress;
   if (!o.quiet) ro.observers.push_back(&progress);
+  // Ctrl-C or SIGTERM: the run stops at a step boundary and its outputs are still written.
+  SignalStop signals;
+  ro.observers.push_back(&signals);
   const RunResult r = run(sim, ro);
 
   if (!o.summary.empty()) writeFileAtomic(o.summary, summaryJson(r, o.scene));
@@ -114,6 +117,11 @@ int cmdRun(const RunCommand& o) {
   if (r.failure) {
     std::cerr << o.scene << ": " << r.failure->str() << "\n";
     return kExitDiverged;
+  }
+  if (r.status == RunResult::Status::Interrupted) {
+    std::cerr << o.scene << ": " << r.stopReason << " after " << r.steps << " steps (t = " << r.endTime
+              << "); the outputs hold the steps run\n";
+    return signals.exitCode();
   }
   if (!o.quiet)
     std::cerr << "ran " << r.steps << " steps (" << r.simulatedTime() << " s simulated) in " << formatDuration(r.wallSeconds)

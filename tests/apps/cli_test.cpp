@@ -12,6 +12,7 @@
 #include "builtin/Builtins.h"
 #include "cli_helpers.h"
 #include "core/Registry.h"
+#include "io/mesh/Mesh.h"
 
 using namespace viscera_test;
 
@@ -334,4 +335,30 @@ TEST(Cli, RunOutputsNeverOverwriteItsInputs) {
   RunResult r = runViscera({"run", tmp / "scene.xml", "--out", tmp / "out", "--steps", "100000", "--wrench", tmp / "no/w.csv"});
   EXPECT_EQ(r.rc, 2) << r;
   EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r;
+}
+
+// SIGINT and SIGTERM stop a run at a step boundary: the summary says "interrupted", the wrench
+// table and the VTK series hold the steps run (the .pvd lists exactly the frames on disk), and the
+// exit code is the shell's for the signal.
+TEST(Cli, InterruptedRunsWriteTheirOutputsAndExitWithTheSignalsCode) {
+  for (const auto& [name, code] : {std::pair{"INT", 130}, std::pair{"TERM", 143}}) {
+    TempDir tmp;
+    std::string cmd = shellQuote(VISCERA_BINARY) + " run " + shellQuote(sourcePath("scenes/gel_phantom_coarse.xml")) +
+                      " --time 80 --quiet --out " + shellQuote(tmp / "out") + " --summary " + shellQuote(tmp / "s.json") +
+                      " --wrench " + shellQuote(tmp / "w.csv");
+    const std::string script = "(" + cmd + " 2>" + shellQuote(tmp / "err") + " & p=$!; sleep 1.5; kill -" + name +
+                               " $p; wait $p; echo $? > " + shellQuote(tmp / "rc") + ")";
+    ASSERT_EQ(std::system(script.c_str()), 0);
+    EXPECT_EQ(std::stoi(slurp(tmp / "rc")), code) << name << ": " << slurp(tmp / "err");
+    const std::string summary = slurp(tmp / "s.json");
+    EXPECT_NE(summary.find("\"status\": \"interrupted\""), std::string::npos) << summary;
+    EXPECT_NE(summary.find(std::string("SIG") + name), std::string::npos) << summary;
+    EXPECT_GT(lines(slurp(tmp / "w.csv")).size(), 2u);
+    const auto frames = viscera::io::readPvd(tmp / "out/gel_phantom_coarse.pvd");
+    EXPECT_GT(frames.size(), 1u);
+    for (const auto& f : frames) EXPECT_TRUE(fs::exists(f.path)) << f.path;
+    size_t onDisk = 0;
+    for (const auto& e : fs::directory_iterator(tmp.path() / "out")) onDisk += e.path().extension() == ".vtu";
+    EXPECT_EQ(onDisk, frames.size());
+  }
 }
