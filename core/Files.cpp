@@ -1,12 +1,14 @@
 #include "core/Files.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <thread>
 
 #include "core/Error.h"
@@ -46,6 +48,30 @@ void writeFileAtomic(const std::string& path, const std::string& content) {
     const int err = errno;
     failWith(err, "renaming", true);
   }
+}
+
+std::string readInputFile(const std::string& path, const std::string& what, std::uintmax_t maxBytes) {
+  const std::string prefix = "cannot open" + (what.empty() ? std::string() : " " + what) + ": ";
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw Error(SourceLoc{path}, prefix + std::strerror(errno));
+  if (S_ISDIR(st.st_mode)) throw Error(SourceLoc{path}, prefix + "it is a directory");
+  if (!S_ISREG(st.st_mode))
+    throw Error(SourceLoc{path}, prefix + "it is not a regular file (a device, FIFO or socket could be endless or block)");
+  if (static_cast<std::uintmax_t>(st.st_size) > maxBytes)
+    throw Error(SourceLoc{path}, prefix + "it holds " + std::to_string(st.st_size) + " bytes, more than the " +
+                                     std::to_string(maxBytes) + " an input file may have");
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  if (!file) throw Error(SourceLoc{path}, prefix + std::strerror(errno));
+  std::string bytes;
+  bytes.reserve(static_cast<size_t>(st.st_size));
+  char buffer[1 << 16];
+  size_t got;
+  while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) {
+    bytes.append(buffer, got);
+    if (bytes.size() > maxBytes) throw Error(SourceLoc{path}, prefix + "it grew past the limit while being read");
+  }
+  if (std::ferror(file.get())) throw Error(SourceLoc{path}, "cannot read" + (what.empty() ? std::string() : " " + what) + ": " + std::strerror(errno));
+  return bytes;
 }
 
 }  // namespace viscera

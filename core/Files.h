@@ -1,9 +1,20 @@
-// Files written whole or not at all.
+// Files written whole or not at all, and input files read whole with their limits checked.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 namespace viscera {
+
+// The largest input file read whole (scenes, tables, meshes, transforms): 2 GiB.
+constexpr std::uintmax_t kMaxInputBytes = std::uintmax_t{2} << 30;
+
+// The bytes of the input file `path`. Throws viscera::Error naming the path, "cannot open WHAT: "
+// + the reason, for a missing or unreadable file, a folder, a file larger than `maxBytes`, and
+// anything that is not a regular file (a device such as /dev/zero, a FIFO, a socket), which could
+// be endless or block. `what` names the kind of file in the message ("trajectory", "mesh file";
+// empty: none).
+std::string readInputFile(const std::string& path, const std::string& what = "", std::uintmax_t maxBytes = kMaxInputBytes);
 
 // Writes `content` to `path` through a temporary file in the same folder and a rename, so that
 // readers never see a half-written file. Throws viscera::Error naming the path on failure.

@@ -197,6 +197,13 @@ std::string Scene::outputPath(const std::string& p) const {
   return base.empty() ? p : (fs::path(base) / path).lexically_normal().string();
 }
 
+bool Scene::escapesOutputFolder(const std::string& p) const {
+  namespace fs = std::filesystem;
+  if (outDir_.empty()) return false;
+  const fs::path path = fs::path(p).lexically_normal();
+  return path.is_absolute() || path.has_root_name() || (!path.empty() && *path.begin() == "..");
+}
+
 namespace {
 void initTree(Scene& s, Node& n) {
   if (!n.active()) return;

@@ -35,6 +35,9 @@ class Scene {
   // scene's folder.
   void setOutputDirectory(const std::string& d) { outDir_ = d; }
   std::string outputPath(const std::string& p) const;
+  // Whether the output name `p` would leave the output folder set with setOutputDirectory (an
+  // absolute path, or ".." climbing out of it); false when none is set.
+  bool escapesOutputFolder(const std::string& p) const;
   // Notes about accepted but ignored elements and attributes.
   const std::vector<std::string>& notes() const { return notes_; }
   // Adds a note (components explain at init what they ignore or assume).

@@ -194,16 +194,7 @@ Trajectory parseTrajectoryCsv(const std::string& text, const std::string& name) 
 }
 
 Trajectory readTrajectoryCsv(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw Error(SourceLoc{path}, "cannot open trajectory: it is a directory");
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!file) throw Error(SourceLoc{path}, std::string("cannot open trajectory: ") + std::strerror(errno));
-  std::string text;
-  char buffer[1 << 16];
-  size_t got;
-  while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, got);
-  if (std::ferror(file.get())) throw Error(SourceLoc{path}, std::string("cannot read trajectory: ") + std::strerror(errno));
-  return parseTrajectoryCsv(text, path);
+  return parseTrajectoryCsv(readInputFile(path, "trajectory"), path);
 }
 
 std::string formatTrajectoryCsv(const Trajectory& tr) {

@@ -91,6 +91,8 @@ class DepthCameraComponent : public Component, public Observer {
     encoding_ = attrs_.boolean("binary") ? cloud::CloudEncoding::Binary : cloud::CloudEncoding::Ascii;
     folderName_ = attrs_.isSet("filename") ? attrs_.str("filename") : name();
     if (folderName_.empty()) throw error("filename", "is empty; name the folder the frames go to");
+    if (scene().escapesOutputFolder(folderName_))
+      throw error("filename", "'" + folderName_ + "' would be written outside the output folder (--out); give a name inside it");
     for (DepthCameraComponent* cam : scene().all<DepthCameraComponent>()) {
       if (cam == this || !cam->initialized()) continue;
       if (std::filesystem::path(cam->folderName_).lexically_normal() == std::filesystem::path(folderName_).lexically_normal())

@@ -1,3 +1,4 @@
+#include "core/Files.h"
 #include "study/Dataset.h"
 
 #include <algorithm>
@@ -16,13 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string readText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(SourceLoc{path}, "cannot be read");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+std::string readText(const std::string& path) { return readInputFile(path); }
 
 // The number of comma-separated fields on the first line that holds data or a header.
 int firstLineFields(const std::string& text) {

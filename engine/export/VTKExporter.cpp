@@ -54,7 +54,10 @@ class VTKExporter : public Component, public Observer {
     // Unnamed, a surface exporter takes the visual model's name so that it does not share its
     // .pvd with the body's exporter.
     const std::string fallback = visual_ ? visual_->name() : name();
-    base_ = scene().outputPath(attrs_.isSet("filename") ? attrs_.str("filename") : fallback);
+    const std::string name = attrs_.isSet("filename") ? attrs_.str("filename") : fallback;
+    if (scene().escapesOutputFolder(name))
+      throw error("filename", "'" + name + "' would be written outside the output folder (--out); give a name inside it");
+    base_ = scene().outputPath(name);
     std::filesystem::path dir = std::filesystem::path(base_).parent_path();
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);

@@ -2,6 +2,7 @@
 // and the mesh loaders (MeshGmshLoader, MeshVTKLoader).
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
@@ -14,6 +15,10 @@ namespace viscera {
 
 namespace {
 
+// The most nodes a RegularGridTopology may have (about 20 GB of state and stiffness at ~2 kB a
+// node): a limit against typing mistakes, far above any tissue model run here.
+constexpr long long kMaxGridNodes = 10'000'000;
+
 const TetList kNoTets;
 
 class RegularGridTopology : public Component, public Topology {
@@ -23,6 +28,16 @@ class RegularGridTopology : public Component, public Topology {
     auto n = attrs_.ints("n");
     const auto& lo = attrs_.reals("min");
     const auto& hi = attrs_.reals("max");
+    // Counted in 64 bits before anything is allocated: a grid's node count overflows an int long
+    // before memory runs out, and memory runs out long before an int overflows.
+    const long double nodes = static_cast<long double>(n[0]) * n[1] * n[2];
+    if (nodes > kMaxGridNodes) {
+      std::ostringstream m;
+      m << "n = " << n[0] << " " << n[1] << " " << n[2] << " makes " << static_cast<double>(nodes)
+        << " nodes (about " << static_cast<double>(nodes) * 2e3 / 1e9
+        << " GB for their state and stiffness); a grid may have at most " << kMaxGridNodes << " nodes";
+      throw error("n", m.str());
+    }
     for (int a = 0; a < 3; ++a) n_[a] = n[a];
     points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]));
     hexa_ = gridHexahedra(n_);
@@ -154,7 +169,7 @@ void registerTopologies(Registry& r) {
     s.name = "RegularGridTopology";
     s.category = "topology";
     s.doc = "A regular grid of n[0] x n[1] x n[2] nodes over [min, max] (x fastest, then y, then z) and its hexahedra.";
-    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per axis"));
+    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per axis (at most 10 million nodes in all)"));
     s.add(AttrSpec::reals("min", 3).def("0 0 0").unit(Dimension::length()).help("lower corner"));
     s.add(AttrSpec::reals("max", 3).def("1 1 1").unit(Dimension::length()).help("upper corner"));
     s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };

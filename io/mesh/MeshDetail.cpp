@@ -1,3 +1,4 @@
+#include "core/Files.h"
 #include "io/mesh/MeshDetail.h"
 
 #include <cctype>
@@ -21,16 +22,7 @@ void fail(const std::string& source, int line, const std::string& what) {
 }
 
 std::string readWholeFile(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) fail(path, 0, "cannot read mesh file: it is a directory");
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!file) fail(path, 0, std::string("cannot open mesh file: ") + std::strerror(errno));
-  std::string bytes;
-  char buffer[1 << 16];
-  size_t got;
-  while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) bytes.append(buffer, got);
-  if (std::ferror(file.get())) fail(path, 0, std::string("cannot read mesh file: ") + std::strerror(errno));
-  return bytes;
+  return readInputFile(path, "mesh file");
 }
 
 static bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }

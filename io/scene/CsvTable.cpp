@@ -1,3 +1,4 @@
+#include "core/Files.h"
 #include "io/scene/CsvTable.h"
 
 #include <cctype>
@@ -104,16 +105,7 @@ NumericCsv parseNumericCsv(const std::string& text, const std::string& source,
 }
 
 NumericCsv readNumericCsv(const std::string& path, const std::vector<std::string>& columnNames) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw Error(SourceLoc{path}, "cannot open: it is a directory");
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!file) throw Error(SourceLoc{path}, std::string("cannot open: ") + std::strerror(errno));
-  std::string text;
-  char buffer[1 << 16];
-  size_t got;
-  while ((got = std::fread(buffer, 1, sizeof buffer, file.get())) > 0) text.append(buffer, got);
-  if (std::ferror(file.get())) throw Error(SourceLoc{path}, std::string("cannot read: ") + std::strerror(errno));
-  return parseNumericCsv(text, path, columnNames);
+  return parseNumericCsv(readInputFile(path), path, columnNames);
 }
 
 }  // namespace viscera::io

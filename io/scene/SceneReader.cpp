@@ -1,3 +1,4 @@
+#include "core/Files.h"
 #include "io/scene/SceneReader.h"
 
 #include <algorithm>
@@ -134,11 +135,7 @@ SceneDesc parseSceneText(const std::string& text, const std::string& file) {
 }
 
 SceneDesc readScene(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(SourceLoc{path, 0, 0}, "cannot open the scene file");
-  std::ostringstream s;
-  s << in.rdbuf();
-  return parseSceneText(s.str(), path);
+  return parseSceneText(readInputFile(path, "the scene file"), path);
 }
 
 }  // namespace viscera::io

@@ -56,11 +56,7 @@ RigidTransform parseTransform(const std::string& text, const std::string& source
 }
 
 RigidTransform readTransform(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw Error(SourceLoc{path, 0, 0}, "cannot open transform file");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return parseTransform(ss.str(), path);
+  return parseTransform(readInputFile(path, "transform file"), path);
 }
 
 std::string formatTransform(const RigidTransform& T, const std::string& comment) {

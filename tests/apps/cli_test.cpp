@@ -362,3 +362,49 @@ TEST(Cli, InterruptedRunsWriteTheirOutputsAndExitWithTheSignalsCode) {
     EXPECT_EQ(onDisk, frames.size());
   }
 }
+
+// Special files as inputs are refused at once (/dev/zero would never end, a FIFO would block), and
+// an exporter may not write outside --out.
+TEST(Cli, SpecialFilesAndEscapingOutputsAreRefused) {
+  TempDir tmp;
+  const std::string scene = slurp(sourcePath("tests/data/study/block.xml"));
+  auto withReplaced = [&](const std::string& from, const std::string& to, const std::string& name) {
+    std::string s = scene;
+    s.replace(s.find(from), from.size(), to);
+    std::ofstream(tmp.path() / name) << s;
+    return tmp / name;
+  };
+  fs::copy_file(sourcePath("tests/data/study/poke.csv"), tmp.path() / "poke.csv");
+  const RunResult zero = runViscera({"check", withReplaced("poke.csv", "/dev/zero", "zero.xml")});
+  EXPECT_EQ(zero.rc, 2) << zero;
+  EXPECT_NE(zero.err.find("/dev/zero: cannot open trajectory: it is not a regular file"), std::string::npos) << zero;
+
+  ASSERT_EQ(std::system(("mkfifo " + shellQuote(tmp / "fifo.csv")).c_str()), 0);
+  const RunResult fifo = runViscera({"check", withReplaced("poke.csv", "fifo.csv", "fifo.xml")});
+  EXPECT_EQ(fifo.rc, 2) << fifo;
+  EXPECT_NE(fifo.err.find("not a regular file"), std::string::npos) << fifo;
+
+  for (const std::string name : {"../escape", "/tmp/viscera_escape"}) {
+    const RunResult r = runViscera({"run", withReplaced("filename=\"block\"", "filename=\"" + name + "\"", "esc.xml"), "--steps",
+                                    "2", "--out", tmp / "out"});
+    EXPECT_EQ(r.rc, 2) << r;
+    EXPECT_NE(r.err.find("outside the output folder"), std::string::npos) << r;
+  }
+  EXPECT_FALSE(fs::exists(tmp.path() / "escape.pvd"));
+  EXPECT_FALSE(fs::exists("/tmp/viscera_escape.pvd"));
+}
+
+// Grid node counts are checked in 64 bits against a documented limit before anything is allocated.
+TEST(Cli, HugeGridsAreRefusedBeforeAllocating) {
+  TempDir tmp;
+  fs::copy_file(sourcePath("tests/data/study/poke.csv"), tmp.path() / "poke.csv");
+  for (const std::string n : {"65536 65536 1", "1 1 100000000", "2147483647 2147483647 2147483647"}) {
+    std::string s = slurp(sourcePath("tests/data/study/block.xml"));
+    s.replace(s.find("n=\"5 3 3\""), 9, "n=\"" + n + "\"");
+    std::ofstream(tmp.path() / "big.xml") << s;
+    const RunResult r = runViscera({"check", tmp / "big.xml"});
+    EXPECT_EQ(r.rc, 2) << n << "\n" << r;
+    EXPECT_NE(r.err.find("RegularGridTopology.n"), std::string::npos) << r;
+    EXPECT_NE(r.err.find("at most 10000000 nodes"), std::string::npos) << r;
+  }
+}
