@@ -211,7 +211,19 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
       const Eigen::Vector3d e = x.col(u) - x.col(vtx);
       if (d.dot(e) > 1e-9 * dn * e.norm()) return;
     }
-    Eigen::Vector3d nrm = d / std::max(dn, 1e-300);
+    Eigen::Vector3d nrm;
+    if (dn > 1e-12 * reach) {
+      nrm = d / dn;
+    } else {
+      // The centre exactly on the vertex: no direction from the vertex to the centre, so the
+      // outward normal of the faces around it (a rare case: the scan over the faces is fine).
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (const auto& at : tris_)
+        if (at[0] == vtx || at[1] == vtx || at[2] == vtx)
+          sum += (x.col(at[1]) - x.col(at[0])).cross(x.col(at[2]) - x.col(at[0])).normalized();
+      if (!(sum.norm() > 0)) return;  // no face: no side to push towards
+      nrm = sum.normalized();
+    }
     make(Feature::Vertex, {{vtx, 1.0}}, cl.point, nrm, dn);
   });
 }

@@ -408,3 +408,21 @@ TEST(Cli, HugeGridsAreRefusedBeforeAllocating) {
     EXPECT_NE(r.err.find("at most 10000000 nodes"), std::string::npos) << r;
   }
 }
+
+// A sphere centre exactly on a surface vertex, edge or face of the coarse phantom (its corner, the
+// middle of a top edge's first segment, a point of the top face) has a defined contact normal: the
+// run goes on instead of diverging with non-finite forces.
+TEST(Cli, ASphereCentreOnTheSurfaceHasADefinedNormal) {
+  TempDir tmp;
+  std::string scene = slurp(sourcePath("scenes/gel_phantom_coarse.xml"));
+  const std::string trajectory = "filename=\"palpation_80s.csv\"";
+  scene.replace(scene.find(trajectory), trajectory.size(), "filename=\"still.csv\"");
+  const auto exporter = scene.find("<VTKExporter");
+  scene.erase(exporter, scene.find("/>", exporter) + 2 - exporter);
+  std::ofstream(tmp.path() / "phantom.xml") << scene;
+  for (const std::string at : {"0,0,0", "2.8625,0,39.3", "30,17.9,39.3"}) {
+    std::ofstream(tmp.path() / "still.csv") << "t,x,y,z,qx,qy,qz,qw\n0," << at << ",0,0,0,1\n";
+    const RunResult r = runViscera({"run", tmp / "phantom.xml", "--steps", "30", "--quiet"});
+    EXPECT_EQ(r.rc, 0) << at << "\n" << r;
+  }
+}
