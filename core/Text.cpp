@@ -53,4 +53,12 @@ std::string formatNumber(double v) {
   return std::string(buffer, ec == std::errc() ? end : buffer);
 }
 
+std::string plainText(std::string_view text) {
+  if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  std::string out(text);
+  for (size_t i = 0; i < out.size(); ++i)
+    if (out[i] == '\r' && (i + 1 == out.size() || out[i + 1] != '\n')) out[i] = '\n';
+  return out;
+}
+
 }  // namespace viscera

@@ -21,4 +21,9 @@ bool parseInteger(std::string_view s, long long& out);
 // The shortest text that reads back as exactly `v` ("0.1", "1e-07", "0.3333333333333333").
 std::string formatNumber(double v);
 
+// Text as the line-based readers take it: a UTF-8 byte-order mark dropped (spreadsheet exports
+// start with one) and lone carriage returns (old Mac line ends) turned into line feeds; CR LF pairs
+// are left to the readers, which accept them.
+std::string plainText(std::string_view text);
+
 }  // namespace viscera

@@ -151,7 +151,8 @@ Twist Trajectory::twist(double time) const {
   return tw;
 }
 
-Trajectory parseTrajectoryCsv(const std::string& text, const std::string& name) {
+Trajectory parseTrajectoryCsv(const std::string& raw, const std::string& name) {
+  const std::string text = plainText(raw);
   Trajectory tr;
   std::string previousTime;  // as written, for messages
   int previousLine = 0;

@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string readText(const std::string& path) { return readInputFile(path); }
+std::string readText(const std::string& path) { return plainText(readInputFile(path)); }
 
 // The number of comma-separated fields on the first line that holds data or a header.
 int firstLineFields(const std::string& text) {

@@ -22,7 +22,10 @@ void fail(const std::string& source, int line, const std::string& what) {
 }
 
 std::string readWholeFile(const std::string& path) {
-  return readInputFile(path, "mesh file");
+  std::string bytes = readInputFile(path, "mesh file");
+  // A byte-order mark before an ASCII header (files saved by Windows editors).
+  if (bytes.compare(0, 3, "\xEF\xBB\xBF") == 0) bytes.erase(0, 3);
+  return bytes;
 }
 
 static bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }

@@ -64,8 +64,9 @@ std::string joined(const std::vector<std::string>& names) {
 
 }  // namespace
 
-NumericCsv parseNumericCsv(const std::string& text, const std::string& source,
+NumericCsv parseNumericCsv(const std::string& raw, const std::string& source,
                            const std::vector<std::string>& columnNames) {
+  const std::string text = plainText(raw);
   NumericCsv table;
   table.source = source;
   table.columns = static_cast<int>(columnNames.size());

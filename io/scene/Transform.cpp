@@ -13,8 +13,8 @@
 
 namespace viscera {
 
-RigidTransform parseTransform(const std::string& text, const std::string& source) {
-  std::istringstream in(text);
+RigidTransform parseTransform(const std::string& raw, const std::string& source) {
+  std::istringstream in(plainText(raw));
   std::string line;
   std::vector<double> v;
   std::vector<int> lineOf;
