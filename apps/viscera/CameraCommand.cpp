@@ -2,6 +2,7 @@
 // gets a camera from the command-line options, added to its description as a DepthCamera element
 // so that the options are validated by the component's own declarations.
 #include "builtin/Builtins.h"
+#include "apps/viscera/CliText.h"
 #include "apps/viscera/CameraCommand.h"
 
 #include <CLI/CLI.hpp>
@@ -98,7 +99,7 @@ int runCamera(const CameraOptions& o) {
   Simulation sim(*scene);  // initialises: every input error surfaces before anything is written
   if (!o.quiet) {
     for (const auto& n : notes) std::cerr << n << "\n";
-    for (const auto& n : scene->notes()) std::cerr << n << "\n";
+    cli::printNotes(scene->notes());
   }
   RunOptions ro;
   if (o.steps >= 0) ro.steps = o.steps;

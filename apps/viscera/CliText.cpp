@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <iostream>
 
 #include "core/Error.h"
 #include "core/Text.h"
@@ -57,6 +58,13 @@ std::vector<double> finiteNumbers(const std::string& text, const std::string& op
 std::string jsonString(const std::string& s) {
   // Bytes that are not UTF-8 (a file name from another system) are replaced, not refused.
   return nlohmann::json(s).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+void printNotes(const std::vector<std::string>& notes, size_t limit) {
+  for (size_t i = 0; i < notes.size() && i < limit; ++i)
+    std::cerr << (notes[i].size() > 500 ? notes[i].substr(0, 500) + "..." : notes[i]) << "\n";
+  if (notes.size() > limit)
+    std::cerr << "... and " << notes.size() - limit << " more note" << (notes.size() - limit == 1 ? "" : "s") << "\n";
 }
 
 }  // namespace viscera::cli

@@ -17,6 +17,11 @@ std::vector<double> finiteNumbers(const std::string& text, const std::string& op
 // be written in exists; commands check this before doing any work, so a typo costs nothing.
 void requireParentFolder(const std::string& path, const std::string& option);
 
+// Prints notes to standard error, at most `limit` of them, then "... and N more notes" (a scene
+// with thousands of ignored elements would otherwise bury the output); each note cut to 500
+// characters.
+void printNotes(const std::vector<std::string>& notes, size_t limit = 20);
+
 // `s` as a quoted JSON string (nlohmann::json's escaping; invalid UTF-8 replaced).
 std::string jsonString(const std::string& s);
 

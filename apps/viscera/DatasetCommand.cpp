@@ -3,6 +3,7 @@
 // camera's frames, the camera pose and the contact wrench with sensor-like noise. The folder is
 // written under a temporary name and renamed when complete, so a dataset is whole or absent.
 // `viscera dataset check`: validates a dataset and prints what it holds.
+#include "apps/viscera/CliText.h"
 #include "apps/viscera/DatasetCommand.h"
 
 #include <CLI/CLI.hpp>
@@ -147,7 +148,7 @@ int make(const MakeOptions& o) {
     if (c->typeName() == "DepthCamera") camera = c, ++cameras;
   if (cameras != 1) throw Error(SourceLoc{o.scene}, "a dataset has one camera; the scene has " + std::to_string(cameras));
   if (!o.quiet)
-    for (const auto& n : scene->notes()) std::cerr << n << "\n";
+    cli::printNotes(scene->notes());
 
   PoseRecorder poses(*bodies.front());
   ProgressLine progress;

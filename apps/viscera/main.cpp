@@ -62,7 +62,7 @@ std::unique_ptr<Scene> loadScene(const std::string& path, const std::vector<std:
 // Notes from reading and initialising the scene (ignored elements, idle solvers, ...).
 void printNotes(const Scene& scene, bool quiet) {
   if (quiet) return;
-  for (const auto& n : scene.notes()) std::cerr << n << "\n";
+  cli::printNotes(scene.notes());
 }
 
 int cmdRun(const RunCommand& o) {

@@ -426,3 +426,18 @@ TEST(Cli, ASphereCentreOnTheSurfaceHasADefinedNormal) {
     EXPECT_EQ(r.rc, 0) << at << "\n" << r;
   }
 }
+
+// Ten thousand ignored elements give twenty notes and a count, not 600 KB of notes.
+TEST(Cli, RepeatedNotesAreCapped) {
+  TempDir tmp;
+  fs::copy_file(sourcePath("tests/data/study/poke.csv"), tmp.path() / "poke.csv");
+  std::string s = slurp(sourcePath("tests/data/study/block.xml"));
+  std::string many;
+  for (int i = 0; i < 10000; ++i) many += "<BruteForceBroadPhase/>";
+  s.replace(s.find("<FreeMotionAnimationLoop/>"), 26, "<FreeMotionAnimationLoop/>" + many);
+  std::ofstream(tmp.path() / "many.xml") << s;
+  const RunResult r = runViscera({"check", tmp / "many.xml"});
+  EXPECT_EQ(r.rc, 0) << r;
+  EXPECT_NE(r.err.find("... and 9980 more notes"), std::string::npos) << r.err.substr(0, 2000);
+  EXPECT_LT(r.err.size(), 5000u);
+}
