@@ -15,7 +15,44 @@
 
 namespace viscera {
 
+namespace {
+
+// Writes all of `content` to `fd`; false with errno set on failure.
+bool writeAll(int fd, const std::string& content) {
+  size_t done = 0;
+  while (done < content.size()) {
+    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      if (n == 0) errno = EIO;
+      return false;
+    }
+    done += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+}  // namespace
+
 void writeFileAtomic(const std::string& path, const std::string& content) {
+  // What is at the path decides how: a regular file (or nothing) is replaced atomically; a link
+  // is refused (an output never follows one out of its folder); a device or FIFO is written
+  // through, never replaced by a file (/dev/null works, /dev/full reports its error).
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) == 0) {
+    if (S_ISLNK(st.st_mode))
+      throw Error(SourceLoc{path}, "cannot write file: it is a symbolic link, and outputs do not follow links (nothing was written)");
+    if (S_ISDIR(st.st_mode)) throw Error(SourceLoc{path}, "cannot write file: it is a directory");
+    if (!S_ISREG(st.st_mode)) {
+      const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | (S_ISFIFO(st.st_mode) ? O_NONBLOCK : 0));
+      if (fd < 0) throw Error(SourceLoc{path}, std::string("cannot write to the device or FIFO: ") + std::strerror(errno));
+      const bool ok = writeAll(fd, content);
+      const int err = errno;
+      if (::close(fd) != 0 || !ok)
+        throw Error(SourceLoc{path}, std::string("cannot write to the device or FIFO: ") + std::strerror(ok ? errno : err));
+      return;
+    }
+  }
   // Same folder as the target, so the rename stays on one file system and is atomic; named by
   // process and thread, so that runs in parallel threads never share a temporary.
   const std::string temp = path + ".tmp." + std::to_string(::getpid()) + "." +
@@ -29,16 +66,10 @@ void writeFileAtomic(const std::string& path, const std::string& content) {
     const int err = errno;
     failWith(err, "creating", false);
   }
-  size_t done = 0;
-  while (done < content.size()) {
-    const ssize_t n = ::write(fd, content.data() + done, content.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int err = n < 0 ? errno : EIO;
-      ::close(fd);
-      failWith(err, "writing", true);
-    }
-    done += static_cast<size_t>(n);
+  if (!writeAll(fd, content)) {
+    const int err = errno;
+    ::close(fd);
+    failWith(err, "writing", true);
   }
   if (::close(fd) != 0) {  // deferred write errors (e.g. a full disk on NFS) show up here
     const int err = errno;

@@ -17,7 +17,9 @@ constexpr std::uintmax_t kMaxInputBytes = std::uintmax_t{2} << 30;
 std::string readInputFile(const std::string& path, const std::string& what = "", std::uintmax_t maxBytes = kMaxInputBytes);
 
 // Writes `content` to `path` through a temporary file in the same folder and a rename, so that
-// readers never see a half-written file. Throws viscera::Error naming the path on failure.
+// readers never see a half-written file. A device or FIFO at `path` is written through instead
+// (never replaced by a file); a symbolic link or a folder is refused. Throws viscera::Error naming
+// the path on failure.
 void writeFileAtomic(const std::string& path, const std::string& content);
 
 }  // namespace viscera

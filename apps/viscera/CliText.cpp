@@ -32,6 +32,11 @@ void requireParentFolder(const std::string& path, const std::string& option) {
   std::error_code ec;
   if (!parent.empty() && !std::filesystem::is_directory(parent, ec))
     throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
+  // What writeFileAtomic refuses, refused before the work rather than after it.
+  const auto st = std::filesystem::symlink_status(path, ec);
+  if (std::filesystem::is_symlink(st))
+    throw Error(SourceLoc{path}, option + ": is a symbolic link, and outputs do not follow links");
+  if (std::filesystem::is_directory(st)) throw Error(SourceLoc{path}, option + ": is a folder, not a file");
 }
 
 void requireNotAnInput(const std::string& path, const std::string& option, const std::vector<std::string>& inputs) {

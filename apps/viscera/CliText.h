@@ -14,7 +14,8 @@ std::vector<std::string> words(const std::string& s);
 std::vector<double> finiteNumbers(const std::string& text, const std::string& option, size_t count, const std::string& shape);
 
 // Throws viscera::Error "PATH: OPTION: the folder F does not exist" unless the folder `path` is to
-// be written in exists; commands check this before doing any work, so a typo costs nothing.
+// be written in exists, and when `path` is a symbolic link or a folder; commands check this before
+// doing any work, so a typo costs nothing.
 void requireParentFolder(const std::string& path, const std::string& option);
 
 // Prints notes to standard error, at most `limit` of them, then "... and N more notes" (a scene

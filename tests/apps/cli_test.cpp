@@ -441,3 +441,20 @@ TEST(Cli, RepeatedNotesAreCapped) {
   EXPECT_NE(r.err.find("... and 9980 more notes"), std::string::npos) << r.err.substr(0, 2000);
   EXPECT_LT(r.err.size(), 5000u);
 }
+
+// An output that is a symbolic link is refused before the run (the link's target is untouched); a
+// device is written through, never replaced by a file.
+TEST(Cli, OutputsNeverFollowLinksNorReplaceDevices) {
+  TempDir tmp;
+  std::ofstream(tmp.path() / "target.json") << "mine";
+  fs::create_symlink(tmp.path() / "target.json", tmp.path() / "link.json");
+  const RunResult link = runViscera({"run", sourcePath("scenes/beam.xml"), "--steps", "2", "--out", tmp / "out", "--summary",
+                                     tmp / "link.json"});
+  EXPECT_EQ(link.rc, 2) << link;
+  EXPECT_NE(link.err.find("symbolic link"), std::string::npos) << link;
+  EXPECT_EQ(slurp(tmp.path() / "target.json"), "mine");
+  EXPECT_FALSE(fs::exists(tmp.path() / "out"));
+  const RunResult null = runViscera({"run", sourcePath("scenes/beam.xml"), "--steps", "2", "--out", tmp / "out2", "--summary", "/dev/null"});
+  EXPECT_EQ(null.rc, 0) << null;
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+}
