@@ -184,13 +184,6 @@ Localisation localise(const ReplayScore& s, const Scales& k, double alpha, doubl
   return L;
 }
 
-double forceRmsOf(const ReplayScore& s) {
-  if (s.samples.empty()) return kNan;
-  double ss = 0;
-  for (const auto& w : s.samples) ss += w.value * w.value;
-  return std::sqrt(ss / s.samples.size());
-}
-
 class Auditor {
  public:
   Auditor(const PreparedDataset& data, const AuditOptions& o, AuditProgress* progress)
@@ -243,7 +236,7 @@ class Auditor {
       if (atNoise(gap, last, rep, 1.0)) break;
       as = describe(current);
       say("round " + std::to_string(round + 1) + ": fitting " + std::to_string(remaining.size()) + " effects");
-      AuditRound r = fitAll(current, as, remaining, heldBase, rep);
+      AuditRound r = fitAll(current, as, remaining, heldBase);
       r.heldoutBeforeMm = gap;
       if (r.candidates.empty()) break;
       // Holm: the smallest p is compared with alpha / m.
@@ -433,7 +426,7 @@ class Auditor {
   }
 
   AuditRound fitAll(const SceneDesc& current, const AuditScene& as, const std::vector<std::string>& keys,
-                    const Items& heldBase, AuditReport& rep) {
+                    const Items& heldBase) {
     std::vector<EffectFit> fits;
     std::mutex mutex;
     std::atomic<size_t> next{0};
@@ -475,7 +468,6 @@ class Auditor {
     });
     AuditRound r;
     r.candidates = std::move(fits);
-    (void)rep;
     return r;
   }
 
@@ -776,8 +768,11 @@ std::string auditMarkdown(const AuditReport& r, const std::string& scene, const 
     size_t at = 0;
     for (const auto& rd : r.rounds) {
       if (!rd.confirmed) continue;
-      for (const auto& p : rd.candidates.front().params)
-        if (at < r.jointValues.size()) m << (at ? ", " : "") << rd.candidates.front().effect << "." << p.name << " " << fmt(r.jointValues[at++]);
+      for (const auto& p : rd.candidates.front().params) {
+        if (at >= r.jointValues.size()) break;
+        m << (at ? ", " : "") << rd.candidates.front().effect << "." << p.name << " " << fmt(r.jointValues[at]);
+        ++at;
+      }
     }
     m << ".\n";
   }

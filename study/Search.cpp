@@ -86,7 +86,9 @@ std::string unitText(const Dimension& d, const UnitSystem& units) {
   names >> length >> mass >> time;
   for (const auto& [name, power] : {std::pair{mass, d.M}, std::pair{length, d.L}, std::pair{time, d.T}}) {
     if (power == 0) continue;
-    out += (out.empty() ? "" : " ") + name + (power == 1 ? "" : "^" + std::to_string(power));
+    if (!out.empty()) out += ' ';
+    out += name;
+    if (power != 1) out += "^" + std::to_string(power);
   }
   return out;
 }

@@ -31,6 +31,7 @@ class CameraOptionSet {
 
  private:
   struct AttributeOption {
+    AttributeOption(const char* f, const char* a, const char* h) : flag(f), attribute(a), help(h) {}
     const char* flag;
     const char* attribute;
     const char* help;
