@@ -88,7 +88,9 @@ std::string unitText(const Dimension& d, const UnitSystem& units) {
     if (power == 0) continue;
     if (!out.empty()) out += ' ';
     out += name;
-    if (power != 1) out += "^" + std::to_string(power);
+    if (power == 1) continue;
+    out += '^';
+    out += std::to_string(power);
   }
   return out;
 }
