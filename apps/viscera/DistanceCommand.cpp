@@ -414,8 +414,8 @@ void addDistanceCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--method", o->method, "vertices: nearest super-sampled point; triangles: exact point-to-triangle")
       ->check(CLI::IsMember({"vertices", "triangles"}))
       ->capture_default_str();
-  cmd->add_option("--factor", o->factor, "super-sampling: subdivisions per triangle edge (vertices method)")
-      ->check(CLI::PositiveNumber)
+  cmd->add_option("--factor", o->factor, "super-sampling: subdivisions per triangle edge (vertices method), 1 to 100")
+      ->check(CLI::Range(1, 100))
       ->capture_default_str();
   cmd->add_option("--max-distance", o->maxDistance, "points farther from the surface are counted as beyond and left out of the statistics");
   cmd->add_option("--time", o->time, "time of a single cloud file, s, to pick its --series frame (default 0)");

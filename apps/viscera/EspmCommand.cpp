@@ -55,6 +55,8 @@ Framing framingOption(const std::string& text) {
 
 double lineRateOption(double rate) {
   if (!(std::isfinite(rate) && rate > 0)) throw Error("--line-rate: " + formatNumber(rate) + " is not a positive number of bit/s");
+  // A serial link of the arm's electronics: anything past 10 Gbit/s is a typing mistake.
+  if (rate > 1e10) throw Error("--line-rate: " + formatNumber(rate) + " bit/s is beyond any link the arms use (at most 1e10)");
   return rate;
 }
 

@@ -216,6 +216,12 @@ int compare(CompareOptions o) {
   checkEncoder(o.spec.test, {{"lines", "--lines"}, {"dutyA", "--duty-a"}, {"dutyB", "--duty-b"}, {"phaseB", "--phase"}});
   checkEncoder(o.spec.truth, {{"lines", "--truth-lines"}});
   const Motion motion = loadMotion(o);
+  // The edge search samples the velocity every --step: bounded before the work starts.
+  const double samples = (motion.end - motion.start) / o.spec.maxStep;
+  if (samples > 1e8)
+    throw Error("velocity compare: --step: " + formatNumber(o.spec.maxStep) + " s over the motion's " +
+                formatNumber(motion.end - motion.start) + " s makes " + formatNumber(samples) +
+                " velocity samples; at most 1e8 (a longer --step or a shorter motion)");
 
   const fs::path dir = o.out;
   if (fs::exists(dir) && !fs::is_directory(dir)) throw Error(SourceLoc{o.out}, "--out must be a folder, and this is a file");

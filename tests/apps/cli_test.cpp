@@ -458,3 +458,25 @@ TEST(Cli, OutputsNeverFollowLinksNorReplaceDevices) {
   EXPECT_EQ(null.rc, 0) << null;
   EXPECT_TRUE(fs::is_character_file("/dev/null"));
 }
+
+// Amounts of work derived from options are bounded before the work starts.
+TEST(Cli, WorkFromOptionsIsBoundedBeforeItStarts) {
+  TempDir tmp;
+  struct Case {
+    std::vector<std::string> args;
+    const char* message;
+  };
+  const std::vector<Case> cases = {
+      {{"velocity", "compare", "--out", tmp / "v", "--step", "1e-12"}, "at most 1e8"},
+      {{"distance", "--factor", "2147483647", "--cloud", tmp / "c.pcd", "--mesh", tmp / "m.msh"}, "not in range 1 to 100"},
+      {{"espm", "synth", "--joints", sourcePath("scenes/psm_palpation_joints.csv"), "--out", tmp / "cap.bin", "--line-rate", "1e15"},
+       "at most 1e10"},
+  };
+  for (const auto& c : cases) {
+    const RunResult r = runViscera(c.args);
+    EXPECT_EQ(r.rc, 2) << c.message << "\n" << r;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << r;
+  }
+  EXPECT_FALSE(fs::exists(tmp.path() / "v"));
+  EXPECT_FALSE(fs::exists(tmp.path() / "cap.bin"));
+}
