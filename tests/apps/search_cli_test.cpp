@@ -11,6 +11,19 @@ namespace {
 
 std::string blockScene() { return sourcePath("tests/data/study/block.xml"); }
 
+// A results table's rows, sorted, each up to its figures (stage, values, status, metric ...
+// force_rms_free): everything but the wall time, which differs between runs.
+std::vector<std::string> resultsTable(const std::string& dir) {
+  std::vector<std::string> rows;
+  for (const auto& l : lines(slurp(fs::path(dir) / "results.csv"))) {
+    size_t end = 0;
+    for (int f = 0; f < 13 && end != std::string::npos; ++f) end = l.find(',', end + 1);
+    rows.push_back(l.substr(0, end));
+  }
+  std::sort(rows.begin(), rows.end());
+  return rows;
+}
+
 class SearchCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -116,18 +129,7 @@ TEST_F(SearchCli, MpiRanksGiveTheSameTableAsThreads) {
   // Open MPI refuses root without these (containers, CI).
   const RunResult r = with(tmp_ / "mpi", "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 --oversubscribe ");
   ASSERT_EQ(r.rc, 0) << r;
-  // Every field up to the figures (stage, value, status, metric ... force_rms_free): not the wall time.
-  auto table = [&](const std::string& dir) {
-    std::vector<std::string> rows;
-    for (const auto& l : lines(slurp(fs::path(dir) / "results.csv"))) {
-      size_t end = 0;
-      for (int f = 0; f < 13 && end != std::string::npos; ++f) end = l.find(',', end + 1);
-      rows.push_back(l.substr(0, end));
-    }
-    std::sort(rows.begin(), rows.end());
-    return rows;
-  };
-  const auto a = table(tmp_ / "threads"), b = table(tmp_ / "mpi");
+  const auto a = resultsTable(tmp_ / "threads"), b = resultsTable(tmp_ / "mpi");
   EXPECT_EQ(a.size(), 6u);
   EXPECT_EQ(a, b);
 }
@@ -178,17 +180,7 @@ TEST_F(SearchCli, AKilledSearchResumesToTheSameTable) {
   std::system(("(" + cmd + " >/dev/null 2>&1 & p=$!; sleep 0.3; kill -9 $p; wait $p) 2>/dev/null").c_str());
   const RunResult again = runViscera(args(tmp_ / "killed"));
   ASSERT_EQ(again.rc, 0) << again;
-  auto table = [&](const std::string& dir) {
-    std::vector<std::string> rows;
-    for (const auto& l : lines(slurp(fs::path(dir) / "results.csv"))) {
-      size_t end = 0;
-      for (int f = 0; f < 13 && end != std::string::npos; ++f) end = l.find(',', end + 1);
-      rows.push_back(l.substr(0, end));
-    }
-    std::sort(rows.begin(), rows.end());
-    return rows;
-  };
-  EXPECT_EQ(table(tmp_ / "whole"), table(tmp_ / "killed"));
+  EXPECT_EQ(resultsTable(tmp_ / "whole"), resultsTable(tmp_ / "killed"));
 }
 
 TEST_F(SearchCli, BadInputExitsTwoAndWritesNothing) {
