@@ -7,6 +7,7 @@ void registerMechanicalObject(Registry&);
 void registerMasses(Registry&);
 void registerConstraints(Registry&);
 void registerRestShapeSprings(Registry&);
+void registerRegionEngines(Registry&);
 void registerTopologies(Registry&);
 void registerTetrahedronFEM(Registry&);
 void registerVTKExporter(Registry&);
@@ -25,6 +26,7 @@ void registerBuiltins(Registry& r) {
   registerMasses(r);
   registerConstraints(r);
   registerRestShapeSprings(r);
+  registerRegionEngines(r);
   registerTopologies(r);
   registerTetrahedronFEM(r);
   registerVTKExporter(r);

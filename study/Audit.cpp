@@ -18,6 +18,7 @@
 #include "core/Scene.h"
 #include "core/Text.h"
 #include "engine/collision/Collision.h"
+#include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/pointcloud/CloudPrep.h"
 #include "observation/CloudDistance.h"
@@ -222,8 +223,7 @@ class Auditor {
     SceneDesc augmented = scene;   // what the user gets: the scene as written, plus the effects
     std::vector<std::string> remaining = effectKeys();
     const AuditScene asNominal = as;
-    const Items heldNominal = itemsOf(base, split_, kInf, scales_, wrench_);
-    Items heldBase = heldNominal;
+    Items heldBase = itemsOf(base, split_, kInf, scales_, wrench_);
     // What the rounds found: each effect, its parameters on the nominal scene and its values.
     std::vector<const Effect*> foundEffects;
     std::vector<std::vector<EffectParam>> foundParams;
@@ -234,11 +234,19 @@ class Auditor {
       // this gate, keeps a control from naming an effect.
       const double gap = heldBase.mmMean();
       if (atNoise(gap, last, rep, 1.0)) break;
-      as = describe(current);
+      as = describe(current, &last);
       say("round " + std::to_string(round + 1) + ": fitting " + std::to_string(remaining.size()) + " effects");
-      AuditRound r = fitAll(current, as, remaining, heldBase);
+      AuditRound r = fitAll(current, last, as, remaining, heldBase);
       r.heldoutBeforeMm = gap;
       if (r.candidates.empty()) break;
+      // An effect flat over its range stays flat when another is added: later rounds skip it.
+      for (const EffectFit& c : r.candidates)
+        if (c.status == "ok" && !c.identifiable) {
+          remaining.erase(std::remove(remaining.begin(), remaining.end(), c.effect), remaining.end());
+          if (round + 1 < o_.rounds)
+            notes_.push_back("effect '" + c.effect + "' is flat over its range in round " + std::to_string(round + 1) +
+                             ": later rounds do not fit it again");
+        }
       // Holm: the smallest p is compared with alpha / m.
       const EffectFit& best = r.candidates.front();
       r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable &&
@@ -255,12 +263,12 @@ class Auditor {
       const Effect& e = effect(best.effect);
       r.heldoutAfterMm = best.heldoutMmAfter;
       rep.found.push_back(best.effect);
-      remaining.erase(std::find(remaining.begin(), remaining.end(), best.effect));
+      remaining.erase(std::remove(remaining.begin(), remaining.end(), best.effect), remaining.end());
       foundEffects.push_back(&e);
       foundParams.push_back(r.candidates.front().params);
       foundValues.insert(foundValues.end(), r.candidates.front().values.begin(), r.candidates.front().values.end());
       rep.rounds.push_back(std::move(r));
-      if (foundEffects.size() > 1) refitTogether(foundEffects, foundParams, foundValues, nominal, asNominal, heldNominal);
+      if (foundEffects.size() > 1) refitTogether(foundEffects, foundParams, foundValues, nominal, asNominal);
       // The scene and the clouds' correction with every effect found at its current values.
       current = nominal;
       augmented = scene;
@@ -307,7 +315,9 @@ class Auditor {
     throw Error("no effect '" + key + "'");
   }
 
-  AuditScene describe(const SceneDesc& desc) const {
+  // What effects may know of `desc`; `last`, its latest replay, tells where the instrument
+  // touched and how the measured force compared.
+  AuditScene describe(const SceneDesc& desc, const ReplayScore* last = nullptr) const {
     AuditScene as;
     as.desc = desc;
     const AttrDesc* u = desc.root.find("units");
@@ -318,6 +328,21 @@ class Auditor {
       for (Eigen::Index i = 0; i < m->x0.cols(); ++i) as.tissueBox.extend(m->x0.col(i));
     const auto spheres = scene->all<SphereCollisionModel>();
     if (!spheres.empty()) as.instrumentRadius = spheres.front()->radius();
+    for (TetrahedronFEMForceField* f : scene->all<TetrahedronFEMForceField>()) {
+      const TetList& t = f->tetrahedra();
+      Eigen::Matrix3Xd X(3, 4 * t.cols());
+      for (Eigen::Index e = 0; e < t.cols(); ++e)
+        for (int k = 0; k < 4; ++k) X.col(4 * e + k) = f->mstate().x0.col(t(k, e));
+      as.femElements.push_back(std::move(X));
+    }
+    if (last && wrench_) {
+      const WrenchSeries& w = *data_.data.wrench;
+      for (const FrameScore& s : last->samples) {
+        const auto j = std::lower_bound(w.t.begin(), w.t.end(), s.time) - w.t.begin();
+        if (!s.contact || j >= w.size()) continue;
+        as.touches.push_back({data_.data.trajectory.sample(s.time).p, w.force[static_cast<size_t>(j)].norm() - s.force});
+      }
+    }
     return as;
   }
 
@@ -369,7 +394,7 @@ class Auditor {
   // minimiser over all their parameters stalls on the contact's kinks where these 1-D and small
   // fits do not.
   void refitTogether(const std::vector<const Effect*>& effects, const std::vector<std::vector<EffectParam>>& params,
-                     std::vector<double>& values, const SceneDesc& nominal, const AuditScene& as, const Items& heldNominal) {
+                     std::vector<double>& values, const SceneDesc& nominal, const AuditScene& as) {
     for (int pass = 0; pass < 2; ++pass) {
       size_t at = 0;
       for (size_t i = 0; i < effects.size(); ++i) {
@@ -378,7 +403,7 @@ class Auditor {
         correction_ = applyFound(effects, params, values, i, others, as);
         std::vector<EffectParam> start = params[i];
         for (size_t j = 0; j < start.size(); ++j) start[j].nominal = values[at + j];
-        const EffectFit f = fit(*effects[i], start, others, as, heldNominal);
+        const EffectFit f = fit(*effects[i], start, others, as, Items(), nullptr, false);
         if (f.status == "ok")
           for (size_t j = 0; j < start.size(); ++j) values[at + j] = f.values[j];
         at += start.size();
@@ -416,6 +441,7 @@ class Auditor {
     ro.regions = true;
     ro.cloudCorrection = correction_;
     ro.residualFolder = residuals;
+    ro.keepSurfaces = true;
     return replay(desc, data_, ro);
   }
 
@@ -425,8 +451,8 @@ class Auditor {
     return correction_ ? std::optional<RigidTransform>(*c * *correction_) : c;
   }
 
-  AuditRound fitAll(const SceneDesc& current, const AuditScene& as, const std::vector<std::string>& keys,
-                    const Items& heldBase) {
+  AuditRound fitAll(const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
+                    const std::vector<std::string>& keys, const Items& heldBase) {
     std::vector<EffectFit> fits;
     std::mutex mutex;
     std::atomic<size_t> next{0};
@@ -443,7 +469,7 @@ class Auditor {
             notes_.push_back("effect '" + keys[i] + "' does not apply to this scene");
             continue;
           }
-          EffectFit f = fit(e, params, current, as, heldBase);
+          EffectFit f = fit(e, params, current, as, heldBase, &recorded);
           std::lock_guard<std::mutex> lock(mutex);
           say("  " + f.effect + ": " + f.status + (f.status == "ok" ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
                                                                            formatNumber(f.heldoutMmAfter) + " mm, p " +
@@ -471,16 +497,36 @@ class Auditor {
     return r;
   }
 
-  // Fits one effect on the training window, then scores the fit on the held-out window.
-  // `budget` replays at most (0: --max-evals).
+  // Fits one effect on the training window, then (with `heldOut`) scores the fit on the held-out
+  // window. `recorded` is a full replay of `current` that kept its surfaces, and the effect's
+  // nominal values leave `current` as it is: it gives the training score at the nominal values
+  // without a replay. An effect that only corrects the clouds is scored on such a replay again
+  // instead of running the scene (one is run when `recorded` is nullptr).
   EffectFit fit(const Effect& e, const std::vector<EffectParam>& params, const SceneDesc& current, const AuditScene& as,
-                const Items& heldBase, int budget = 0) const {
-    const int evaluations = budget > 0 ? budget : o_.maxEvaluations;
+                const Items& heldBase, const ReplayScore* recorded, bool heldOut = true) const {
+    const bool nominalIsCurrent = recorded != nullptr;
+    ReplayScore own;
+    if (!recorded && !e.changesSimulation()) {
+      own = replayFull(current);
+      if (!own.ok()) {
+        EffectFit f;
+        f.effect = e.key();
+        f.what = e.what();
+        f.params = params;
+        f.status = "the scene without this effect failed: " + own.reason;
+        return f;
+      }
+      recorded = &own;
+    }
     EffectFit f;
     f.effect = e.key();
     f.what = e.what();
     f.params = params;
     const size_t d = params.size();
+    const bool cloudOnly = !e.changesSimulation();
+    // A replay is the cost: an effect that only moves the clouds gets many more evaluations.
+    const int budget = cloudOnly ? std::max(4 * o_.maxEvaluations, 40)
+                                 : std::max(o_.maxEvaluations, d > 1 ? 2 * static_cast<int>(d) + 7 : 0);
     auto toU = [&](size_t j, double v) { return params[j].scale == Scale::Log ? std::log10(v) : v; };
     auto fromU = [&](size_t j, double u) { return params[j].scale == Scale::Log ? std::pow(10.0, u) : u; };
     auto values = [&](const std::vector<double>& s) {
@@ -491,20 +537,18 @@ class Auditor {
       }
       return v;
     };
+    std::vector<double> s0(d);
+    bool nominalInside = true;
+    for (size_t j = 0; j < d; ++j) {
+      const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
+      nominalInside = nominalInside && params[j].nominal >= params[j].lo && params[j].nominal <= params[j].hi;
+      s0[j] = b > a ? (toU(j, std::clamp(params[j].nominal, params[j].lo, params[j].hi)) - a) / (b - a) : 0.5;
+    }
     double lo = kInf, hi = -kInf, seTrain = 0;
     std::vector<double> bestS;
     double bestM = kInf;
-    auto evaluate = [&](const std::vector<double>& s) {
-      SceneDesc desc = current;
-      const auto v = values(s);
-      e.apply(desc, v, as);
-      ReplayOptions ro = o_.replay;
-      ro.to = split_;
-      ro.cloudCorrection = compose(e.cloudCorrection(v, as));
-      ++f.evaluations;
-      const ReplayScore sc = replay(desc, data_, ro);
-      if (!sc.ok()) return 1e30;
-      const Items it = itemsOf(sc, -kInf, split_, scales_, wrench_);
+    std::vector<std::pair<std::vector<double>, double>> seen;  // every point scored, and its metric
+    auto note = [&](const std::vector<double>& s, const Items& it) {
       const double m = it.metric();
       lo = std::min(lo, m);
       hi = std::max(hi, m);
@@ -513,23 +557,81 @@ class Auditor {
         bestS = s;
         seTrain = it.se();
       }
+      seen.push_back({s, m});
       return m;
     };
-    std::vector<double> s0(d);
-    for (size_t j = 0; j < d; ++j) {
-      const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
-      s0[j] = b > a ? (toU(j, std::clamp(params[j].nominal, params[j].lo, params[j].hi)) - a) / (b - a) : 0.5;
-    }
-    f.trainBefore = evaluate(s0);
+    auto evaluate = [&](const std::vector<double>& s) {
+      for (const auto& [p, m] : seen)
+        if (p == s) return m;
+      const auto v = values(s);
+      ReplayOptions ro = o_.replay;
+      ro.to = split_;
+      ro.cloudCorrection = compose(e.cloudCorrection(v, as));
+      ReplayScore sc;
+      if (cloudOnly) {
+        sc = rescore(*recorded, data_, ro);
+      } else {
+        SceneDesc desc = current;
+        e.apply(desc, v, as);
+        ++f.evaluations;
+        sc = replay(desc, data_, ro);
+      }
+      if (!sc.ok()) return 1e30;
+      return note(s, itemsOf(sc, -kInf, split_, scales_, wrench_));
+    };
+    // The nominal values leave the scene as it is: their training score is the recorded one's.
+    f.trainBefore = nominalIsCurrent && nominalInside ? note(s0, itemsOf(*recorded, -kInf, split_, scales_, wrench_))
+                                                      : evaluate(s0);
+    const double base = f.trainBefore;
+    bool flat = false;
     if (d == 1) {
-      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(1, evaluations - 1));
-      boost::math::tools::brent_find_minima([&](double s) { return evaluate({s - 1}); }, 1.0, 2.0, 12, it);
+      // Probe either side of the nominal value first. Downhill on one side: walk that way by
+      // growing steps until the score rises, then Brent inside that bracket. Uphill on both: the
+      // nominal value is a minimum, refined between the probes. Otherwise (flat near the nominal
+      // value, or a nominal value at the end of the range, where a score that first rises may
+      // still fall further on) the ends of the range decide between flat and a search of it all.
+      const double step = 0.15;
+      auto at = [&](double x) { return evaluate({std::clamp(x, 0.0, 1.0)}); };
+      const double a = std::max(0.0, s0[0] - step), b = std::min(1.0, s0[0] + step);
+      const double fa = a < s0[0] ? at(a) : kInf, fb = b > s0[0] ? at(b) : kInf;
+      const double se = seTrain;  // the nominal value's standard error
+      double left = 0, right = 1;
+      if (std::min(fa, fb) < base - se) {
+        const double dir = fa <= fb ? -1 : 1;
+        double prev = s0[0], cur = dir < 0 ? a : b, fcur = std::min(fa, fb), len = step;
+        left = std::min(prev, cur), right = std::max(prev, cur);
+        for (;;) {
+          len *= 1.618;
+          const double next = std::clamp(cur + dir * len, 0.0, 1.0);
+          if (next == cur) break;
+          const double fn = at(next);
+          left = std::min(prev, next), right = std::max(prev, next);
+          if (fn >= fcur) break;
+          prev = cur, cur = next, fcur = fn;
+          if (next == 0.0 || next == 1.0) {
+            left = std::min(prev, cur), right = std::max(prev, cur);
+            break;
+          }
+        }
+      } else if (std::isfinite(fa) && std::isfinite(fb) && fa > base + se && fb > base + se) {
+        left = a, right = b;
+      } else {
+        for (double x : {0.0, 1.0})
+          if (std::abs(x - s0[0]) > step) at(x);
+        flat = hi - lo <= 2 * se;
+      }
+      if (!flat) {
+        const int used = static_cast<int>(seen.size());
+        boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget - used));
+        // Shifted by 1 so that Brent's relative tolerance (2^-9) is an absolute one of 0.2 to 0.4 %.
+        boost::math::tools::brent_find_minima([&](double x) { return at(x - 1); }, left + 1, right + 1, 10, it);
+      }
     } else {
       nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
       opt.set_lower_bounds(std::vector<double>(d, 0.0));
       opt.set_upper_bounds(std::vector<double>(d, 1.0));
       opt.set_xtol_abs(1e-3);
-      opt.set_maxeval(std::max(2 * static_cast<int>(d) + 2, evaluations - 1));
+      opt.set_maxeval(budget);
       std::function<double(const std::vector<double>&)> fn = evaluate;
       opt.set_min_objective(
           [](const std::vector<double>& s, std::vector<double>&, void* p) {
@@ -551,21 +653,38 @@ class Auditor {
     }
     f.values = values(bestS);
     f.trainAfter = bestM;
-    f.identifiable = hi - lo > 2 * seTrain;
+    f.identifiable = !flat && hi - lo > 2 * seTrain;
+    if (!heldOut) return f;
+    f.heldoutBefore = heldBase.metric();
+    f.heldoutMmBefore = heldBase.mmMean();
+    if ((bestS == s0 && nominalIsCurrent) || flat) {
+      // Nothing better than the scene as it is: the held-out score is the scene's.
+      f.values = values(s0);
+      f.trainAfter = base;
+      f.heldoutAfter = f.heldoutBefore;
+      f.heldoutMmAfter = f.heldoutMmBefore;
+      f.deltaBic = bic(heldBase, static_cast<int>(d)) - bic(heldBase, 0);
+      f.pValue = 1;
+      return f;
+    }
     // The held-out score of the fitted values: one full replay.
-    SceneDesc desc = current;
-    e.apply(desc, f.values, as);
     ReplayOptions ro = o_.replay;
     ro.cloudCorrection = compose(e.cloudCorrection(f.values, as));
-    const ReplayScore full = replay(desc, data_, ro);
+    ReplayScore full;
+    if (cloudOnly) {
+      full = rescore(*recorded, data_, ro);
+    } else {
+      SceneDesc desc = current;
+      e.apply(desc, f.values, as);
+      ++f.evaluations;
+      full = replay(desc, data_, ro);
+    }
     if (!full.ok()) {
       f.status = "the fitted scene failed on the held-out frames: " + full.reason;
       return f;
     }
     const Items held = itemsOf(full, split_, kInf, scales_, wrench_);
-    f.heldoutBefore = heldBase.metric();
     f.heldoutAfter = held.metric();
-    f.heldoutMmBefore = heldBase.mmMean();
     f.heldoutMmAfter = held.mmMean();
     f.deltaBic = bic(held, static_cast<int>(d)) - bic(heldBase, 0);
     f.pValue = pairedP(heldBase, held);

@@ -67,6 +67,71 @@ double varianceOfMean(const std::vector<double>& v) {
   return s / static_cast<double>(v.size() - 1) / static_cast<double>(v.size());
 }
 
+// Measures frames against a simulated surface: the cloud (corrected when asked) to the surface's
+// triangles, and the residuals per region. Shared by a replay and by rescore().
+class FrameMeasure {
+ public:
+  FrameMeasure(const obs::TriangleList& triangles, int nodes, const PreparedDataset& data, const ReplayOptions& o)
+      : data_(data), options_(o) {
+    obs::DistanceOptions d;
+    d.method = obs::DistanceMethod::Triangles;
+    d.maxDistance = o.score.maxDistance;
+    distance_ = std::make_unique<obs::CloudDistance>(triangles, nodes, d);
+  }
+  // Fills fs.points, fs.value and (with options.regions) fs.regions for dataset frame k against
+  // surface vertices x; `tip` is the instrument sphere's centre then (tipRadius 0: none).
+  // Returns the cloud measured (nullptr when empty).
+  const Eigen::Matrix3Xd* measure(FrameScore& fs, size_t k, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& tip,
+                                  double tipRadius) {
+    const Eigen::Matrix3Xd* cloud = &data_.clouds[k];
+    if (options_.cloudCorrection) {
+      corrected_ = *options_.cloudCorrection * cloud->colwise().homogeneous();
+      cloud = &corrected_;
+    }
+    if (cloud->cols() == 0) return nullptr;
+    distance_->setSurface(x);
+    distance_->measure(*cloud, result_);
+    fs.points = result_.stats.count;
+    if (fs.points > 0) fs.value = result_.stats.rms;
+    if (options_.regions) fs.regions = regions(x, *cloud, tip, tipRadius);
+    return cloud;
+  }
+  const obs::DistanceResult& result() const { return result_; }
+  const obs::TriangleList& triangles() const { return distance_->triangles(); }
+
+ private:
+  // The frame's residuals per region (result_ holds its distances).
+  std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud, const Eigen::Vector3d& tip,
+                                       double tipRadius) const {
+    std::vector<RegionResiduals> out(kRegionCount);
+    const auto& tris = distance_->triangles();
+    for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
+      if (!result_.within[static_cast<size_t>(i)]) continue;
+      const int t = result_.nearest[static_cast<size_t>(i)];
+      const Eigen::Vector3d n =
+          (x.col(tris(1, t)) - x.col(tris(0, t))).cross(x.col(tris(2, t)) - x.col(tris(0, t)));
+      int axis = 0;
+      n.cwiseAbs().maxCoeff(&axis);
+      const int face = axis == 2 ? (n.z() > 0 ? kTop : kBottom) : axis == 0 ? (n.x() > 0 ? kXMax : kXMin) : (n.y() > 0 ? kYMax : kYMin);
+      const Eigen::Vector3d closest = cloud.col(i) + result_.residual.col(i);
+      const bool near = tipRadius > 0 && (closest - tip).norm() < 3 * tipRadius;
+      const double d = result_.distance[static_cast<size_t>(i)], sd = result_.signedDistance[static_cast<size_t>(i)];
+      for (int r : {face, static_cast<int>(near ? kNearInstrument : kAwayFromInstrument)}) {
+        out[r].count += 1;
+        out[r].sumSquared += d * d;
+        out[r].sumSigned += sd;
+      }
+    }
+    return out;
+  }
+
+  const PreparedDataset& data_;
+  const ReplayOptions& options_;
+  std::unique_ptr<obs::CloudDistance> distance_;
+  obs::DistanceResult result_;
+  Eigen::Matrix3Xd corrected_;
+};
+
 // Scores a run as it steps: frames and wrench samples whose time falls in a step are measured
 // against the state interpolated between the step's start and end.
 class Scorer : public RunObserver {
@@ -88,10 +153,13 @@ class Scorer : public RunObserver {
       tOff += static_cast<int>(s.triangles.cols());
       nOff += static_cast<int>(s.state->x.cols());
     }
-    obs::DistanceOptions d;
-    d.method = obs::DistanceMethod::Triangles;
-    d.maxDistance = o.score.maxDistance;
-    distance_ = std::make_unique<obs::CloudDistance>(all, nodes, d);
+    measure_ = std::make_unique<FrameMeasure>(all, nodes, data, o);
+    if (o.keepSurfaces) {
+      recorded_ = std::make_shared<RecordedSurfaces>();
+      recorded_->triangles = all;
+      recorded_->nodes = nodes;
+      recorded_->lengthScale = o.score.lengthScale;
+    }
     prev_.resize(3, nodes);
     cur_.resize(3, nodes);
     deadline_ = o.timeBudget > 0 ? now() + o.timeBudget : 0;
@@ -139,6 +207,7 @@ class Scorer : public RunObserver {
   }
 
   std::vector<FrameScore> frames, samples;
+  std::shared_ptr<RecordedSurfaces> recorded_;
 
  private:
   // Measurement times on the scene's clock.
@@ -159,19 +228,15 @@ class Scorer : public RunObserver {
     if (fs.time < options_.from || fs.time > options_.to) return;
     fs.contact = contact;
     fs.force = force_;
-    const Eigen::Matrix3Xd& stored = data_.clouds[k];
-    const Eigen::Matrix3Xd* cloud = &stored;
-    if (options_.cloudCorrection) {
-      corrected_ = *options_.cloudCorrection * stored.colwise().homogeneous();
-      cloud = &corrected_;
-    }
-    if (cloud->cols() > 0) {
-      distance_->setSurface(x);
-      distance_->measure(*cloud, result_);
-      fs.points = result_.stats.count;
-      if (fs.points > 0) fs.value = result_.stats.rms;
-      if (options_.regions) fs.regions = regions(x, *cloud);
-      if (!options_.residualFolder.empty()) writeResiduals(k, fs.time, x, *cloud);
+    const Eigen::Vector3d tip = sphere_ ? sphere_->centre() : Eigen::Vector3d::Zero();
+    const double radius = sphere_ ? sphere_->radius() : 0.0;
+    const Eigen::Matrix3Xd* cloud = measure_->measure(fs, k, x, tip, radius);
+    if (cloud && !options_.residualFolder.empty()) writeResiduals(k, fs.time, x, *cloud);
+    if (recorded_) {
+      recorded_->frame.push_back(k);
+      recorded_->x.push_back(x);
+      recorded_->tip.push_back(tip);
+      recorded_->tipRadius = radius;
     }
     frames.push_back(std::move(fs));
   }
@@ -189,45 +254,20 @@ class Scorer : public RunObserver {
     char name[32];
     std::snprintf(name, sizeof name, "_%06zu.vtp", k);
     const fs::path dir = options_.residualFolder;
-    obs::writeCloudResiduals((dir / ("cloud" + std::string(name))).string(), cloud, result_);
-    obs::writeSurfaceResiduals((dir / ("surface" + std::string(name))).string(), x, distance_->triangles(), result_);
+    obs::writeCloudResiduals((dir / ("cloud" + std::string(name))).string(), cloud, measure_->result());
+    obs::writeSurfaceResiduals((dir / ("surface" + std::string(name))).string(), x, measure_->triangles(), measure_->result());
     cloudFiles_.push_back({t, "cloud" + std::string(name)});
     surfaceFiles_.push_back({t, "surface" + std::string(name)});
     io::writePvd((dir / "cloud.pvd").string(), cloudFiles_);
     io::writePvd((dir / "surface.pvd").string(), surfaceFiles_);
   }
 
-  // The frame's residuals per region (result_ holds its distances).
-  std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) const {
-    std::vector<RegionResiduals> out(kRegionCount);
-    const auto& tris = distance_->triangles();
-    for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
-      if (!result_.within[static_cast<size_t>(i)]) continue;
-      const int t = result_.nearest[static_cast<size_t>(i)];
-      const Eigen::Vector3d n =
-          (x.col(tris(1, t)) - x.col(tris(0, t))).cross(x.col(tris(2, t)) - x.col(tris(0, t)));
-      int axis = 0;
-      n.cwiseAbs().maxCoeff(&axis);
-      const int face = axis == 2 ? (n.z() > 0 ? kTop : kBottom) : axis == 0 ? (n.x() > 0 ? kXMax : kXMin) : (n.y() > 0 ? kYMax : kYMin);
-      const Eigen::Vector3d closest = cloud.col(i) + result_.residual.col(i);
-      const bool near = sphere_ && (closest - sphere_->centre()).norm() < 3 * sphere_->radius();
-      const double d = result_.distance[static_cast<size_t>(i)], sd = result_.signedDistance[static_cast<size_t>(i)];
-      for (int r : {face, static_cast<int>(near ? kNearInstrument : kAwayFromInstrument)}) {
-        out[r].count += 1;
-        out[r].sumSquared += d * d;
-        out[r].sumSigned += sd;
-      }
-    }
-    return out;
-  }
-
   const PreparedDataset& data_;
   const ReplayOptions& options_;
   RigidObject* tool_;
   std::vector<obs::TissueSurface> surfaces_;
-  std::unique_ptr<obs::CloudDistance> distance_;
-  obs::DistanceResult result_;
-  Eigen::Matrix3Xd prev_, cur_, mix_, corrected_;
+  std::unique_ptr<FrameMeasure> measure_;
+  Eigen::Matrix3Xd prev_, cur_, mix_;
   const SphereCollisionModel* sphere_ = nullptr;
   std::vector<std::pair<double, std::string>> cloudFiles_, surfaceFiles_;
   double force_ = 0;
@@ -264,6 +304,45 @@ double sceneStartTime(const SceneDesc& scene) {
 // Dataset time minus scene time: the dataset's clock starts with its trajectory, which starts
 // with the scene, so that a capture stamped with absolute times replays from the scene's start.
 double clockOffset(const SceneDesc& scene, const Dataset& data) { return data.trajectory.start() - sceneStartTime(scene); }
+
+// The score's totals from its frames and samples (status Diverged when no frame scored).
+void summarise(ReplayScore& s, const PreparedDataset& data, double lengthScale) {
+  std::vector<double> c, cAll, cIn, cOut, g;
+  for (const auto& f : s.frames) {
+    if (!std::isfinite(f.value)) continue;
+    c.push_back(f.value / lengthScale);
+    cAll.push_back(f.value);
+    (f.contact ? cIn : cOut).push_back(f.value);
+  }
+  s.cloudRms = mean(cAll);
+  s.cloudRmsContact = mean(cIn);
+  s.cloudRmsFree = mean(cOut);
+  s.cloudTerm = mean(c);
+  if (c.empty()) {
+    s.status = ReplayScore::Status::Diverged;
+    s.reason = "no frame had a point within the distance cut-off of the simulated surface";
+    return;
+  }
+  double var = varianceOfMean(c);
+  s.metric = s.cloudTerm;
+  if (data.scoresWrench() && !s.samples.empty()) {
+    double all = 0, in = 0, out = 0;
+    int nIn = 0, nOut = 0;
+    for (const auto& w : s.samples) {
+      g.push_back(w.value / data.score.forceScale);
+      all += w.value * w.value;
+      (w.contact ? in : out) += w.value * w.value;
+      (w.contact ? nIn : nOut) += 1;
+    }
+    s.forceRms = std::sqrt(all / static_cast<double>(s.samples.size()));
+    s.forceRmsContact = nIn ? std::sqrt(in / nIn) : ReplayScore::nan;
+    s.forceRmsFree = nOut ? std::sqrt(out / nOut) : ReplayScore::nan;
+    s.forceTerm = mean(g);
+    s.metric += s.forceTerm;
+    var += varianceOfMean(g);
+  }
+  s.metricSe = std::sqrt(var);
+}
 
 }  // namespace
 
@@ -357,41 +436,32 @@ ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const Rep
     return s;
   }
 
-  std::vector<double> c, cAll, cIn, cOut, g;
-  for (const auto& f : s.frames) {
-    if (!std::isfinite(f.value)) continue;
-    c.push_back(f.value / o.score.lengthScale);
-    cAll.push_back(f.value);
-    (f.contact ? cIn : cOut).push_back(f.value);
+  s.surfaces = std::move(scorer.recorded_);
+  summarise(s, data, o.score.lengthScale);
+  return s;
+}
+
+ReplayScore rescore(const ReplayScore& recorded, const PreparedDataset& data, const ReplayOptions& options) {
+  if (!recorded.surfaces) throw std::logic_error("rescore: the replay kept no surfaces (ReplayOptions::keepSurfaces)");
+  if (!options.residualFolder.empty()) throw std::logic_error("rescore: residual files are written by replay() only");
+  const RecordedSurfaces& rec = *recorded.surfaces;
+  ReplayScore s;
+  s.steps = recorded.steps;
+  s.surfaces = recorded.surfaces;
+  for (const FrameScore& w : recorded.samples)
+    if (w.time >= options.from && w.time <= options.to) s.samples.push_back(w);
+  FrameMeasure measure(rec.triangles, rec.nodes, data, options);
+  for (size_t i = 0; i < rec.frame.size() && i < recorded.frames.size(); ++i) {
+    const FrameScore& old = recorded.frames[i];
+    if (old.time < options.from || old.time > options.to) continue;
+    FrameScore fs;
+    fs.time = old.time;
+    fs.contact = old.contact;
+    fs.force = old.force;
+    measure.measure(fs, rec.frame[i], rec.x[i], rec.tip[i], rec.tipRadius);
+    s.frames.push_back(std::move(fs));
   }
-  s.cloudRms = mean(cAll);
-  s.cloudRmsContact = mean(cIn);
-  s.cloudRmsFree = mean(cOut);
-  s.cloudTerm = mean(c);
-  if (c.empty()) {
-    s.status = ReplayScore::Status::Diverged;
-    s.reason = "no frame had a point within the distance cut-off of the simulated surface";
-    return s;
-  }
-  double var = varianceOfMean(c);
-  s.metric = s.cloudTerm;
-  if (data.scoresWrench() && !s.samples.empty()) {
-    double all = 0, in = 0, out = 0;
-    int nIn = 0, nOut = 0;
-    for (const auto& w : s.samples) {
-      g.push_back(w.value / data.score.forceScale);
-      all += w.value * w.value;
-      (w.contact ? in : out) += w.value * w.value;
-      (w.contact ? nIn : nOut) += 1;
-    }
-    s.forceRms = std::sqrt(all / static_cast<double>(s.samples.size()));
-    s.forceRmsContact = nIn ? std::sqrt(in / nIn) : ReplayScore::nan;
-    s.forceRmsFree = nOut ? std::sqrt(out / nOut) : ReplayScore::nan;
-    s.forceTerm = mean(g);
-    s.metric += s.forceTerm;
-    var += varianceOfMean(g);
-  }
-  s.metricSe = std::sqrt(var);
+  summarise(s, data, rec.lengthScale);
   return s;
 }
 

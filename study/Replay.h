@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,6 +66,8 @@ struct ReplayOptions {
   // with distance, residual, signedDistance) and surface_<k>.vtp (the simulated surface with the
   // mean residual per vertex), indexed by cloud.pvd and surface.pvd. The folder must exist.
   std::string residualFolder;
+  // Keep the simulated surface at every scored frame (ReplayScore::surfaces), for rescore().
+  bool keepSurfaces = false;
 };
 
 // Where on the tissue a cloud point lies: by the outward normal of its closest triangle (the
@@ -89,6 +92,18 @@ struct FrameScore {
   std::vector<RegionResiduals> regions;                     // kRegionCount entries with ReplayOptions::regions
 };
 
+// The simulated surface at each scored frame of a replay: enough to score the frames again under
+// another cloud correction without running the scene again.
+struct RecordedSurfaces {
+  Eigen::Matrix3Xi triangles;        // over the vertices of every tissue surface, concatenated
+  int nodes = 0;
+  double lengthScale = 1;            // L the replay resolved (scene units)
+  std::vector<size_t> frame;         // dataset frame of each record
+  std::vector<Eigen::Matrix3Xd> x;   // the surface's vertices then
+  std::vector<Eigen::Vector3d> tip;  // the instrument sphere's centre then
+  double tipRadius = 0;              // 0: no instrument sphere
+};
+
 struct ReplayScore {
   enum class Status { Ok, Diverged, Timeout };
   Status status = Status::Ok;
@@ -102,6 +117,7 @@ struct ReplayScore {
   std::vector<FrameScore> frames, samples;
   int steps = 0;
   double wallSeconds = 0;
+  std::shared_ptr<const RecordedSurfaces> surfaces;  // with ReplayOptions::keepSurfaces
   bool ok() const { return status == Status::Ok; }
 };
 const char* statusName(ReplayScore::Status s);  // "ok", "diverged", "timeout"
@@ -109,5 +125,10 @@ const char* statusName(ReplayScore::Status s);  // "ok", "diverged", "timeout"
 // Builds the scene from `desc` (a replay description), runs it over the dataset's time span and
 // scores it. Input errors of the scene throw viscera::Error; divergence and timeouts are results.
 ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const ReplayOptions& options = {});
+
+// Scores the frames of `recorded` (a replay with keepSurfaces) again with options' cloud
+// correction, regions and [from, to] window, without running the scene: what a correction of the
+// clouds alone (the audit's registration) costs. Wrench samples are kept as they were.
+ReplayScore rescore(const ReplayScore& recorded, const PreparedDataset& data, const ReplayOptions& options);
 
 }  // namespace viscera::study

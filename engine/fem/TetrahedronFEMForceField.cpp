@@ -21,16 +21,7 @@ void TetrahedronFEMForceField::init() {
   const std::string& m = attrs_.str("method");
   method_ = m == "small" ? fem::Method::Small : m == "polar" ? fem::Method::Polar : fem::Method::Large;
   exact_ = attrs_.boolean("exactTangent");
-  Topology& topo = contextTopology(*this);
-  if (topo.tetrahedra().cols() > 0) {
-    tets_ = topo.tetrahedra();
-  } else {
-    // Directly on hexahedra, SOFA's force field applies the mirroring tests of the swapping
-    // split but always the straight vertex order.
-    auto cells = topo.gridCells();
-    if (cells[0] == 0) cells = {2, 1, 1};
-    tets_ = splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
-  }
+  tets_ = elementTetrahedra(contextTopology(*this));
   const int n = state_->size();
   for (int e = 0; e < tets_.cols(); ++e)
     for (int k = 0; k < 4; ++k)
@@ -38,7 +29,7 @@ void TetrahedronFEMForceField::init() {
         throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(tets_(k, e)) +
                     ", but the MechanicalObject has " + std::to_string(n) + " nodes");
 
-  const auto& E = attrs_.reals("youngModulus");
+  const std::vector<double> E = linkedReals("youngModulus");
   const double nu = attrs_.real("poissonRatio");
   if (E.size() != 1 && static_cast<long>(E.size()) != tets_.cols())
     throw error("youngModulus", "expected one value or one per tetrahedron (" + std::to_string(tets_.cols()) + "), got " +
@@ -199,7 +190,7 @@ void registerTetrahedronFEM(Registry& r) {
   s.doc = "Linear elastic tetrahedra. method=small: linear; large: corotational with the element frame built "
           "from its edges (SOFA's default); polar: corotational with the polar decomposition of the edge "
           "matrix. The implicit solve uses R^T K0 R as SOFA does, or the exact tangent with exactTangent.";
-  s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).help("Young's modulus: one value, or one per tetrahedron"));
+  s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per tetrahedron (or a link such as @young.outputValues)"));
   s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
   s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
   s.add(AttrSpec::boolean("exactTangent").def("false").help("use the exact derivative of the corotational force (Newton)"));

@@ -59,4 +59,13 @@ TetList splitHexahedra(const HexList& hexa, int nx, int ny, bool swapping, bool 
   return t;
 }
 
+TetList elementTetrahedra(const Topology& topo) {
+  if (topo.tetrahedra().cols() > 0) return topo.tetrahedra();
+  // Directly on hexahedra, SOFA's force field applies the mirroring tests of the swapping split
+  // but always the straight vertex order.
+  auto cells = topo.gridCells();
+  if (cells[0] == 0) cells = {2, 1, 1};
+  return splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
+}
+
 }  // namespace viscera

@@ -18,6 +18,11 @@ HexList gridHexahedra(const std::array<int, 3>& n);
 // SOFA's TetrahedronFEMForceField does when placed directly on hexahedra).
 TetList splitHexahedra(const HexList& hexa, int nx, int ny, bool swapping, bool fixOrientation = true);
 
+// The tetrahedra a TetrahedronFEMForceField builds on `topo`: its tetrahedra, or, directly on a
+// grid, SOFA's split of its hexahedra (straight vertex order, as SOFA's force field does). Engines
+// that select elements (SphereROI) use the same list, so that element indices agree.
+TetList elementTetrahedra(const Topology& topo);
+
 // A component that fills another's elements at init (topological mappings).
 class TopologyFiller {
  public:

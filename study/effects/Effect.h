@@ -32,6 +32,16 @@ struct AuditScene {
   UnitSystem units;
   Eigen::AlignedBox3d tissueBox;  // the deformable bodies' rest positions
   double instrumentRadius = 0;    // the first SphereCollisionModel's (0: none)
+  // The tetrahedra of each TetrahedronFEMForceField, in document order: the rest positions of
+  // each element's four vertices (columns 4e .. 4e+3), in the force field's element order.
+  std::vector<Eigen::Matrix3Xd> femElements;
+  // Where the instrument touched the tissue in the last replay and by how much the measured force
+  // exceeded the simulated one (scene force units): a stiffer region is felt where it is large.
+  struct Touch {
+    Eigen::Vector3d at;
+    double excess = 0;
+  };
+  std::vector<Touch> touches;
 };
 
 class Effect {
@@ -50,15 +60,20 @@ class Effect {
   virtual std::optional<RigidTransform> cloudCorrection(const std::vector<double>& values, const AuditScene& scene) const {
     return std::nullopt;
   }
+  // Whether apply() changes what the scene simulates. An effect that only corrects the clouds is
+  // fitted by scoring one recorded replay again, without running the scene.
+  virtual bool changesSimulation() const { return true; }
 };
 
 // Every effect of the library, in report order.
 std::vector<std::unique_ptr<Effect>> effectLibrary();
 
 // Helpers for effects: the elements with a tag (SOFA aliases included), the value of a real
-// attribute in scene units (its default when not written), and a number as scene text.
+// attribute in scene units (its default when not written), whether an attribute is a link, and a
+// number as scene text.
 std::vector<ElementDesc*> elementsOf(ElementDesc& root, const std::string& tag);
 std::vector<double> realsOf(const ElementDesc& el, const std::string& attribute, const UnitSystem& units);
+bool isLink(const ElementDesc& el, const std::string& attribute);  // "@engine.field": set by another component
 std::string numberText(double v);
 void noteChange(ElementDesc& el, const std::string& effect, const std::string& what);
 

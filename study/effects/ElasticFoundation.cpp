@@ -20,7 +20,7 @@ class ElasticFoundation : public Effect {
     SceneDesc d = s.desc;
     const auto fixed = supports(d.root);
     const auto fems = elementsOf(d.root, "TetrahedronFEMForceField");
-    if (fixed.empty() || fems.empty() || s.tissueBox.isEmpty()) return {};
+    if (fixed.empty() || fems.empty() || s.tissueBox.isEmpty() || isLink(*fems.front(), "youngModulus")) return {};
     const double E = realsOf(*fems.front(), "youngModulus", s.units).at(0);
     const double k = E * s.tissueBox.sizes().maxCoeff() / 10;
     return {{"stiffness", 1e-2 * k, 1e3 * k, 1e3 * k, Scale::Log, "scene stiffness"}};

@@ -12,6 +12,7 @@ namespace viscera::study {
 std::unique_ptr<Effect> makeGravity();
 std::unique_ptr<Effect> makeYoungModulus();
 std::unique_ptr<Effect> makePoissonRatio();
+std::unique_ptr<Effect> makeInclusion();
 std::unique_ptr<Effect> makeDamping();
 std::unique_ptr<Effect> makeFriction();
 std::unique_ptr<Effect> makeInstrumentRadius();
@@ -23,6 +24,7 @@ std::vector<std::unique_ptr<Effect>> effectLibrary() {
   v.push_back(makeGravity());
   v.push_back(makeYoungModulus());
   v.push_back(makePoissonRatio());
+  v.push_back(makeInclusion());
   v.push_back(makeDamping());
   v.push_back(makeFriction());
   v.push_back(makeInstrumentRadius());
@@ -57,6 +59,11 @@ std::vector<double> realsOf(const ElementDesc& el, const std::string& attribute,
     throw Error(given ? given->loc : el.loc, el.tag + "." + attribute + ": " + e.what());
   }
   return v.nums;
+}
+
+bool isLink(const ElementDesc& el, const std::string& attribute) {
+  const AttrDesc* a = el.find(attribute);
+  return a && !a->value.empty() && a->value[0] == '@';
 }
 
 std::string numberText(double v) {

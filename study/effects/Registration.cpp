@@ -29,6 +29,7 @@ class Registration : public Effect {
                                      numberText(v.at(2)) + ") deg and translation (" + numberText(v.at(3)) + ", " +
                                      numberText(v.at(4)) + ", " + numberText(v.at(5)) + ")");
   }
+  bool changesSimulation() const override { return false; }
   std::optional<RigidTransform> cloudCorrection(const std::vector<double>& v, const AuditScene& s) const override {
     const Eigen::Vector3d centre = s.tissueBox.center();
     const double d = M_PI / 180;

@@ -12,7 +12,10 @@ class YoungModulus : public Effect {
   std::string what() const override { return "a factor on the Young's modulus of every FEM force field"; }
   std::vector<EffectParam> params(const AuditScene& s) const override {
     SceneDesc d = s.desc;
-    if (elementsOf(d.root, "TetrahedronFEMForceField").empty()) return {};
+    const auto fems = elementsOf(d.root, "TetrahedronFEMForceField");
+    if (fems.empty()) return {};
+    for (ElementDesc* f : fems)
+      if (isLink(*f, "youngModulus")) return {};  // set by engines: not ours to rewrite
     return {{"scale", 0.1, 10.0, 1.0, Scale::Log, ""}};
   }
   void apply(SceneDesc& desc, const std::vector<double>& v, const AuditScene& s) const override {
