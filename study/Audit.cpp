@@ -21,6 +21,7 @@
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/pointcloud/CloudPrep.h"
+#include "io/scene/SceneWriter.h"
 #include "observation/CloudDistance.h"
 #include "observation/Tissue.h"
 
@@ -87,6 +88,15 @@ double pairedP(const Items& before, const Items& after) {
   if (!(se > 0)) return d > 0 ? 0.0 : 1.0;
   boost::math::students_t t(static_cast<double>(dc.size() - 1));
   return boost::math::cdf(boost::math::complement(t, d / se));
+}
+
+// The standard error of the difference between two scorings of the same frames and samples.
+double pairedSe(const Items& a, const Items& b) {
+  if (a.c.size() != b.c.size() || a.g.size() != b.g.size() || a.c.size() < 2) return kNan;
+  std::vector<double> dc(a.c.size()), dg(a.g.size());
+  for (size_t i = 0; i < dc.size(); ++i) dc[i] = a.c[i] - b.c[i];
+  for (size_t i = 0; i < dg.size(); ++i) dg[i] = a.g[i] - b.g[i];
+  return std::sqrt(variance(dc) / dc.size() + (dg.size() > 1 ? variance(dg) / dg.size() : 0.0));
 }
 
 // BIC of the items as Gaussian residuals with k parameters: n ln(mean square) + k ln n.
@@ -185,6 +195,14 @@ Localisation localise(const ReplayScore& s, const Scales& k, double alpha, doubl
   return L;
 }
 
+// How fit() spends its replays.
+struct FitMode {
+  bool heldOut = true;   // score the fit on the held-out window
+  bool screen = false;   // give up unless a step either way improves the training score
+  int budget = 0;        // replays at most (0: --max-evals, or 2 n + 7 for n parameters when more)
+  const std::vector<double>* startAt = nullptr;  // refine from these values (a coarse fit's)
+};
+
 class Auditor {
  public:
   Auditor(const PreparedDataset& data, const AuditOptions& o, AuditProgress* progress)
@@ -236,7 +254,7 @@ class Auditor {
       if (atNoise(gap, last, rep, 1.0)) break;
       as = describe(current, &last);
       say("round " + std::to_string(round + 1) + ": fitting " + std::to_string(remaining.size()) + " effects");
-      AuditRound r = fitAll(current, last, as, remaining, heldBase);
+      AuditRound r = fitAll(current, last, as, remaining, heldBase, round > 0);
       r.heldoutBeforeMm = gap;
       if (r.candidates.empty()) break;
       // An effect flat over its range stays flat when another is added: later rounds skip it.
@@ -247,6 +265,7 @@ class Auditor {
             notes_.push_back("effect '" + c.effect + "' is flat over its range in round " + std::to_string(round + 1) +
                              ": later rounds do not fit it again");
         }
+      refineWinner(r, current, last, as, heldBase);
       // Holm: the smallest p is compared with alpha / m.
       const EffectFit& best = r.candidates.front();
       r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable &&
@@ -278,7 +297,11 @@ class Auditor {
       last = replayFull(current);
       heldBase = itemsOf(last, split_, kInf, scales_, wrench_);
     }
-    if (!o_.residualsAfter.empty()) last = replayFull(current, folder(o_.residualsAfter));
+    if (!o_.residualsAfter.empty()) {
+      // The augmented scene's residual series: its last replay's recorded surfaces scored again.
+      ReplayOptions ro = residualOptions(folder(o_.residualsAfter));
+      last = rescore(last, data_, ro);
+    }
     rep.after = localise(last, scales_, o_.alpha, rep.noiseFloorMm);
     rep.remainingGapMm = heldBase.mmMean();
     rep.atNoiseLevel = atNoise(rep.remainingGapMm, last, rep, 1.5);
@@ -318,23 +341,7 @@ class Auditor {
   // What effects may know of `desc`; `last`, its latest replay, tells where the instrument
   // touched and how the measured force compared.
   AuditScene describe(const SceneDesc& desc, const ReplayScore* last = nullptr) const {
-    AuditScene as;
-    as.desc = desc;
-    const AttrDesc* u = desc.root.find("units");
-    as.units = u ? UnitSystem::parse(u->value) : UnitSystem();
-    auto scene = buildScene(desc);
-    scene->init();
-    for (MechanicalObject* m : scene->all<MechanicalObject>())
-      for (Eigen::Index i = 0; i < m->x0.cols(); ++i) as.tissueBox.extend(m->x0.col(i));
-    const auto spheres = scene->all<SphereCollisionModel>();
-    if (!spheres.empty()) as.instrumentRadius = spheres.front()->radius();
-    for (TetrahedronFEMForceField* f : scene->all<TetrahedronFEMForceField>()) {
-      const TetList& t = f->tetrahedra();
-      Eigen::Matrix3Xd X(3, 4 * t.cols());
-      for (Eigen::Index e = 0; e < t.cols(); ++e)
-        for (int k = 0; k < 4; ++k) X.col(4 * e + k) = f->mstate().x0.col(t(k, e));
-      as.femElements.push_back(std::move(X));
-    }
+    AuditScene as = describeScene(desc);
     if (last && wrench_) {
       const WrenchSeries& w = *data_.data.wrench;
       for (const FrameScore& s : last->samples) {
@@ -403,13 +410,32 @@ class Auditor {
         correction_ = applyFound(effects, params, values, i, others, as);
         std::vector<EffectParam> start = params[i];
         for (size_t j = 0; j < start.size(); ++j) start[j].nominal = values[at + j];
-        const EffectFit f = fit(*effects[i], start, others, as, Items(), nullptr, false);
+        FitMode mode;
+        mode.heldOut = false;
+        const EffectFit f = fit(*effects[i], start, others, as, Items(), nullptr, mode);
         if (f.status == "ok")
           for (size_t j = 0; j < start.size(); ++j) values[at + j] = f.values[j];
         at += start.size();
       }
     }
     correction_.reset();
+  }
+
+  // The candidates were fitted coarsely, enough to rank them; the first is refitted from its
+  // values within a small bracket (it only improves) before it is tested.
+  void refineWinner(AuditRound& r, const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
+                    const Items& heldBase) {
+    EffectFit& best = r.candidates.front();
+    const Effect& e = effect(best.effect);
+    if (best.status != "ok" || best.screened || !best.identifiable || !e.changesSimulation()) return;
+    say("refine " + best.effect);
+    FitMode mode;
+    mode.startAt = &best.values;
+    mode.budget = std::max(4, o_.maxEvaluations / 2);
+    EffectFit refined = fit(e, best.params, current, as, heldBase, &recorded, mode);
+    if (refined.status != "ok" || refined.trainAfter > best.trainAfter) return;
+    refined.evaluations += best.evaluations;
+    best = std::move(refined);
   }
 
   // A residual folder, created (empty: none).
@@ -436,13 +462,21 @@ class Auditor {
     return cloud && force;
   }
 
+  // A full replay with regions and recorded surfaces, writing its residual series to `residuals`
+  // (empty: none), every few frames so that at most --residual-frames are written.
   ReplayScore replayFull(const SceneDesc& desc, const std::string& residuals = "") const {
+    ReplayOptions ro = residualOptions(residuals);
+    ro.keepSurfaces = true;
+    return replay(desc, data_, ro);
+  }
+  ReplayOptions residualOptions(const std::string& residuals) const {
     ReplayOptions ro = o_.replay;
     ro.regions = true;
     ro.cloudCorrection = correction_;
     ro.residualFolder = residuals;
-    ro.keepSurfaces = true;
-    return replay(desc, data_, ro);
+    const int frames = static_cast<int>(data_.data.frames.size());
+    ro.residualStride = o_.residualFrames > 0 ? std::max(1, (frames + o_.residualFrames - 1) / o_.residualFrames) : 1;
+    return ro;
   }
 
   // An effect's cloud correction after the one the earlier rounds found.
@@ -452,7 +486,7 @@ class Auditor {
   }
 
   AuditRound fitAll(const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
-                    const std::vector<std::string>& keys, const Items& heldBase) {
+                    const std::vector<std::string>& keys, const Items& heldBase, bool screen) {
     std::vector<EffectFit> fits;
     std::mutex mutex;
     std::atomic<size_t> next{0};
@@ -469,9 +503,13 @@ class Auditor {
             notes_.push_back("effect '" + keys[i] + "' does not apply to this scene");
             continue;
           }
-          EffectFit f = fit(e, params, current, as, heldBase, &recorded);
+          FitMode mode;
+          mode.screen = screen;
+          // Coarse: enough to rank the candidates; the winner is refined (refineWinner).
+          mode.budget = params.size() == 1 ? std::max(6, o_.maxEvaluations / 2) : 2 * static_cast<int>(params.size()) + 3;
+          EffectFit f = fit(e, params, current, as, heldBase, &recorded, mode);
           std::lock_guard<std::mutex> lock(mutex);
-          say("  " + f.effect + ": " + f.status + (f.status == "ok" ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
+          say("  " + f.effect + ": " + (f.screened ? std::string("no better near the scene's values") : f.status) + (f.status == "ok" && !f.screened ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
                                                                            formatNumber(f.heldoutMmAfter) + " mm, p " +
                                                                            formatNumber(f.pValue)
                                                                      : ""));
@@ -503,7 +541,8 @@ class Auditor {
   // without a replay. An effect that only corrects the clouds is scored on such a replay again
   // instead of running the scene (one is run when `recorded` is nullptr).
   EffectFit fit(const Effect& e, const std::vector<EffectParam>& params, const SceneDesc& current, const AuditScene& as,
-                const Items& heldBase, const ReplayScore* recorded, bool heldOut = true) const {
+                const Items& heldBase, const ReplayScore* recorded, const FitMode& mode = {}) const {
+    const bool heldOut = mode.heldOut, screen = mode.screen;
     const bool nominalIsCurrent = recorded != nullptr;
     ReplayScore own;
     if (!recorded && !e.changesSimulation()) {
@@ -525,8 +564,9 @@ class Auditor {
     const size_t d = params.size();
     const bool cloudOnly = !e.changesSimulation();
     // A replay is the cost: an effect that only moves the clouds gets many more evaluations.
-    const int budget = cloudOnly ? std::max(4 * o_.maxEvaluations, 40)
-                                 : std::max(o_.maxEvaluations, d > 1 ? 2 * static_cast<int>(d) + 7 : 0);
+    const int budget = cloudOnly      ? std::max(4 * o_.maxEvaluations, 40)
+                       : mode.budget > 0 ? mode.budget
+                                         : std::max(o_.maxEvaluations, d > 1 ? 2 * static_cast<int>(d) + 7 : 0);
     auto toU = [&](size_t j, double v) { return params[j].scale == Scale::Log ? std::log10(v) : v; };
     auto fromU = [&](size_t j, double u) { return params[j].scale == Scale::Log ? std::pow(10.0, u) : u; };
     auto values = [&](const std::vector<double>& s) {
@@ -547,7 +587,12 @@ class Auditor {
     double lo = kInf, hi = -kInf, seTrain = 0;
     std::vector<double> bestS;
     double bestM = kInf;
-    std::vector<std::pair<std::vector<double>, double>> seen;  // every point scored, and its metric
+    struct Seen {
+      std::vector<double> s;
+      double m;
+      Items items;
+    };
+    std::vector<Seen> seen;  // every point scored
     auto note = [&](const std::vector<double>& s, const Items& it) {
       const double m = it.metric();
       lo = std::min(lo, m);
@@ -557,12 +602,13 @@ class Auditor {
         bestS = s;
         seTrain = it.se();
       }
-      seen.push_back({s, m});
+      seen.push_back({s, m, it});
       return m;
     };
+    const std::string currentText = nominalIsCurrent && !cloudOnly ? io::formatScene(current) : std::string();
     auto evaluate = [&](const std::vector<double>& s) {
-      for (const auto& [p, m] : seen)
-        if (p == s) return m;
+      for (const Seen& x : seen)
+        if (x.s == s) return x.m;
       const auto v = values(s);
       ReplayOptions ro = o_.replay;
       ro.to = split_;
@@ -573,6 +619,9 @@ class Auditor {
       } else {
         SceneDesc desc = current;
         e.apply(desc, v, as);
+        // Values that change nothing (an inclusion as stiff as the rest) score as the scene does.
+        if (nominalIsCurrent && io::formatScene(desc) == currentText)
+          return note(s, itemsOf(*recorded, -kInf, split_, scales_, wrench_));
         ++f.evaluations;
         sc = replay(desc, data_, ro);
       }
@@ -584,7 +633,49 @@ class Auditor {
                                                       : evaluate(s0);
     const double base = f.trainBefore;
     bool flat = false;
-    if (d == 1) {
+    if (screen && nominalIsCurrent && !cloudOnly) {
+      // Later rounds: a step either way along each parameter must lower the training score by
+      // more than twice the paired standard error, or the effect is not fitted again.
+      const Items baseItems = seen.front().items;
+      bool better = false;
+      for (size_t j = 0; j < d && !better; ++j)
+        for (double dir : {-1.0, 1.0}) {
+          std::vector<double> p = s0;
+          p[j] = std::clamp(s0[j] + dir * 0.15, 0.0, 1.0);
+          if (p[j] == s0[j]) continue;
+          const double m = evaluate(p);
+          if (seen.back().s == p && base - m > 2 * pairedSe(baseItems, seen.back().items)) {
+            better = true;
+            break;
+          }
+        }
+      if (!better) {
+        f.screened = true;
+        f.values = values(s0);
+        f.trainAfter = base;
+        f.identifiable = hi - lo > 2 * seTrain;
+        if (!heldOut) return f;
+        f.heldoutBefore = f.heldoutAfter = heldBase.metric();
+        f.heldoutMmBefore = f.heldoutMmAfter = heldBase.mmMean();
+        f.deltaBic = bic(heldBase, static_cast<int>(d)) - bic(heldBase, 0);
+        f.pValue = 1;
+        return f;
+      }
+    }
+    std::vector<double> from;  // the refinement's start, in [0, 1]
+    if (mode.startAt) {
+      for (size_t j = 0; j < d; ++j) {
+        const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
+        from.push_back(b > a ? (toU(j, std::clamp(mode.startAt->at(j), params[j].lo, params[j].hi)) - a) / (b - a) : 0.5);
+      }
+    }
+    if (!from.empty() && d == 1) {
+      // Refinement of a coarse fit: Brent within a small bracket around it.
+      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget));
+      const double lo1 = std::max(0.0, from[0] - 0.06), hi1 = std::min(1.0, from[0] + 0.06);
+      boost::math::tools::brent_find_minima([&](double x) { return evaluate({std::clamp(x - 1, 0.0, 1.0)}); }, lo1 + 1, hi1 + 1,
+                                            10, it);
+    } else if (d == 1) {
       // Probe either side of the nominal value first. Downhill on one side: walk that way by
       // growing steps until the score rises, then Brent inside that bracket. Uphill on both: the
       // nominal value is a minimum, refined between the probes. Otherwise (flat near the nominal
@@ -632,13 +723,14 @@ class Auditor {
       opt.set_upper_bounds(std::vector<double>(d, 1.0));
       opt.set_xtol_abs(1e-3);
       opt.set_maxeval(budget);
+      if (!from.empty()) opt.set_initial_step(0.05);
       std::function<double(const std::vector<double>&)> fn = evaluate;
       opt.set_min_objective(
           [](const std::vector<double>& s, std::vector<double>&, void* p) {
             return (*static_cast<std::function<double(const std::vector<double>&)>*>(p))(s);
           },
           &fn);
-      std::vector<double> s = s0;
+      std::vector<double> s = from.empty() ? s0 : from;
       double v = 0;
       try {
         opt.optimize(s, v);
@@ -704,6 +796,27 @@ class Auditor {
 
 }  // namespace
 
+AuditScene describeScene(const SceneDesc& desc) {
+  AuditScene as;
+  as.desc = desc;
+  const AttrDesc* u = desc.root.find("units");
+  as.units = u ? UnitSystem::parse(u->value) : UnitSystem();
+  auto scene = buildScene(desc);
+  scene->init();
+  for (MechanicalObject* m : scene->all<MechanicalObject>())
+    for (Eigen::Index i = 0; i < m->x0.cols(); ++i) as.tissueBox.extend(m->x0.col(i));
+  const auto spheres = scene->all<SphereCollisionModel>();
+  if (!spheres.empty()) as.instrumentRadius = spheres.front()->radius();
+  for (TetrahedronFEMForceField* f : scene->all<TetrahedronFEMForceField>()) {
+    const TetList& t = f->tetrahedra();
+    Eigen::Matrix3Xd X(3, 4 * t.cols());
+    for (Eigen::Index e = 0; e < t.cols(); ++e)
+      for (int k = 0; k < 4; ++k) X.col(4 * e + k) = f->mstate().x0.col(t(k, e));
+    as.femElements.push_back(std::move(X));
+  }
+  return as;
+}
+
 const char* Localisation::phaseName(int phase) {
   static const char* const names[] = {"rest", "loading", "holding", "release"};
   return phase >= 0 && phase < kPhases ? names[phase] : "?";
@@ -739,7 +852,8 @@ Json fitJson(const EffectFit& f) {
           {"heldout_after_mm", num(f.heldoutMmAfter)},
           {"delta_bic", num(f.deltaBic)},
           {"p_value", num(f.pValue)},
-          {"identifiable", f.identifiable}};
+          {"identifiable", f.identifiable},
+          {"screened_out", f.screened}};
 }
 
 Json localisationJson(const Localisation& L) {
@@ -876,7 +990,8 @@ std::string auditMarkdown(const AuditReport& r, const std::string& scene, const 
       std::ostringstream v;
       v.precision(4);
       for (size_t j = 0; j < f.values.size(); ++j) v << (j ? ", " : "") << f.params[j].name << " " << f.values[j];
-      m << "| " << k + 1 << " | `" << f.effect << "` | " << (f.status == "ok" ? v.str() : f.status) << " | "
+      m << "| " << k + 1 << " | `" << f.effect << "` | "
+        << (f.status != "ok" ? f.status : f.screened ? std::string("not refitted: no better a step either way") : v.str()) << " | "
         << f.heldoutMmBefore << " -> " << f.heldoutMmAfter << " | " << f.deltaBic << " | " << f.pValue << " | "
         << (f.identifiable ? "yes" : "no: flat over its range") << " |\n";
     }

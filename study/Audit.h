@@ -37,6 +37,7 @@ struct AuditOptions {
   // When set, the nominal and the final replays write their per-frame residuals here for
   // ParaView (ReplayOptions::residualFolder).
   std::string residualsBefore, residualsAfter;
+  int residualFrames = 150;  // frames per residual series at most, evenly spaced (0: all)
 };
 
 // Residual statistics of one region in one phase, over the frames that have points there.
@@ -70,6 +71,7 @@ struct EffectFit {
   double deltaBic = 0;              // held-out BIC(with the effect) - BIC(without): < 0 favours it
   double pValue = 1;                // one-sided paired test that the effect lowers the held-out metric
   bool identifiable = true;         // the training metric changes over the range by more than its noise
+  bool screened = false;            // later rounds: no step either way improved it, so it was not fitted
 };
 
 struct AuditRound {
@@ -100,6 +102,10 @@ struct AuditProgress {
   virtual ~AuditProgress() = default;
   virtual void message(const std::string& line) {}
 };
+
+// What an effect may know of a scene: its units, the tissue's box, the instrument's radius and the
+// FEM elements (built and initialised once). AuditScene::touches stays empty.
+AuditScene describeScene(const SceneDesc& desc);
 
 AuditReport runAudit(const SceneDesc& scene, const PreparedDataset& data, const AuditOptions& options,
                      AuditProgress* progress = nullptr);

@@ -94,12 +94,24 @@ class FrameMeasure {
     fs.points = result_.stats.count;
     if (fs.points > 0) fs.value = result_.stats.rms;
     if (options_.regions) fs.regions = regions(x, *cloud, tip, tipRadius);
+    if (!options_.residualFolder.empty() && measured_++ % std::max(1, options_.residualStride) == 0)
+      writeResiduals(k, fs.time, x, *cloud);
     return cloud;
   }
-  const obs::DistanceResult& result() const { return result_; }
-  const obs::TriangleList& triangles() const { return distance_->triangles(); }
 
  private:
+  void writeResiduals(size_t k, double t, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) {
+    char name[32];
+    std::snprintf(name, sizeof name, "_%06zu.vtp", k);
+    const fs::path dir = options_.residualFolder;
+    obs::writeCloudResiduals((dir / ("cloud" + std::string(name))).string(), cloud, result_);
+    obs::writeSurfaceResiduals((dir / ("surface" + std::string(name))).string(), x, distance_->triangles(), result_);
+    cloudFiles_.push_back({t, "cloud" + std::string(name)});
+    surfaceFiles_.push_back({t, "surface" + std::string(name)});
+    io::writePvd((dir / "cloud.pvd").string(), cloudFiles_);
+    io::writePvd((dir / "surface.pvd").string(), surfaceFiles_);
+  }
+
   // The frame's residuals per region (result_ holds its distances).
   std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud, const Eigen::Vector3d& tip,
                                        double tipRadius) const {
@@ -130,6 +142,8 @@ class FrameMeasure {
   std::unique_ptr<obs::CloudDistance> distance_;
   obs::DistanceResult result_;
   Eigen::Matrix3Xd corrected_;
+  size_t measured_ = 0;  // frames measured (for residualStride)
+  std::vector<std::pair<double, std::string>> cloudFiles_, surfaceFiles_;
 };
 
 // Scores a run as it steps: frames and wrench samples whose time falls in a step are measured
@@ -230,8 +244,7 @@ class Scorer : public RunObserver {
     fs.force = force_;
     const Eigen::Vector3d tip = sphere_ ? sphere_->centre() : Eigen::Vector3d::Zero();
     const double radius = sphere_ ? sphere_->radius() : 0.0;
-    const Eigen::Matrix3Xd* cloud = measure_->measure(fs, k, x, tip, radius);
-    if (cloud && !options_.residualFolder.empty()) writeResiduals(k, fs.time, x, *cloud);
+    measure_->measure(fs, k, x, tip, radius);
     if (recorded_) {
       recorded_->frame.push_back(k);
       recorded_->x.push_back(x);
@@ -250,18 +263,6 @@ class Scorer : public RunObserver {
     s.value = (simulated - data_.data.wrench->force[j]).norm();
     samples.push_back(s);
   }
-  void writeResiduals(size_t k, double t, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) {
-    char name[32];
-    std::snprintf(name, sizeof name, "_%06zu.vtp", k);
-    const fs::path dir = options_.residualFolder;
-    obs::writeCloudResiduals((dir / ("cloud" + std::string(name))).string(), cloud, measure_->result());
-    obs::writeSurfaceResiduals((dir / ("surface" + std::string(name))).string(), x, measure_->triangles(), measure_->result());
-    cloudFiles_.push_back({t, "cloud" + std::string(name)});
-    surfaceFiles_.push_back({t, "surface" + std::string(name)});
-    io::writePvd((dir / "cloud.pvd").string(), cloudFiles_);
-    io::writePvd((dir / "surface.pvd").string(), surfaceFiles_);
-  }
-
   const PreparedDataset& data_;
   const ReplayOptions& options_;
   RigidObject* tool_;
@@ -269,7 +270,6 @@ class Scorer : public RunObserver {
   std::unique_ptr<FrameMeasure> measure_;
   Eigen::Matrix3Xd prev_, cur_, mix_;
   const SphereCollisionModel* sphere_ = nullptr;
-  std::vector<std::pair<double, std::string>> cloudFiles_, surfaceFiles_;
   double force_ = 0;
   Eigen::Vector3d fPrev_ = Eigen::Vector3d::Zero();
   double tPrev_ = 0, deadline_ = 0;
@@ -443,7 +443,6 @@ ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const Rep
 
 ReplayScore rescore(const ReplayScore& recorded, const PreparedDataset& data, const ReplayOptions& options) {
   if (!recorded.surfaces) throw std::logic_error("rescore: the replay kept no surfaces (ReplayOptions::keepSurfaces)");
-  if (!options.residualFolder.empty()) throw std::logic_error("rescore: residual files are written by replay() only");
   const RecordedSurfaces& rec = *recorded.surfaces;
   ReplayScore s;
   s.steps = recorded.steps;

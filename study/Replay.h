@@ -66,6 +66,7 @@ struct ReplayOptions {
   // with distance, residual, signedDistance) and surface_<k>.vtp (the simulated surface with the
   // mean residual per vertex), indexed by cloud.pvd and surface.pvd. The folder must exist.
   std::string residualFolder;
+  int residualStride = 1;  // residuals of every residualStride-th scored frame only
   // Keep the simulated surface at every scored frame (ReplayScore::surfaces), for rescore().
   bool keepSurfaces = false;
 };
@@ -128,7 +129,8 @@ ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const Rep
 
 // Scores the frames of `recorded` (a replay with keepSurfaces) again with options' cloud
 // correction, regions and [from, to] window, without running the scene: what a correction of the
-// clouds alone (the audit's registration) costs. Wrench samples are kept as they were.
+// clouds alone (the audit's registration) costs. Wrench samples are kept as they were; residual
+// files are written as replay() writes them.
 ReplayScore rescore(const ReplayScore& recorded, const PreparedDataset& data, const ReplayOptions& options);
 
 }  // namespace viscera::study

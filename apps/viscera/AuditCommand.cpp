@@ -2,6 +2,7 @@
 // effect explains it, and the scene with it added (study/Audit.h). Writes OUT/report.json,
 // OUT/report.md and OUT/augmented.xml; nothing is written when the inputs are unusable.
 #include "apps/viscera/AuditCommand.h"
+#include "apps/viscera/AuditBench.h"
 #include "apps/viscera/Gnuplot.h"
 #include "apps/viscera/Html.h"
 
@@ -30,7 +31,7 @@ namespace fs = std::filesystem;
 struct AuditArgs {
   std::string scene, data, out = "audit";
   std::vector<std::string> effects, sets;
-  int jobs = 1, rounds = 3, points = 2000, maxEvals = 16;
+  int jobs = 1, rounds = 3, points = 2000, maxEvals = 16, residualFrames = 150;
   double train = 0.6, alpha = 0.05;
   bool noWrench = false, quiet = false, noPlot = false, noResiduals = false;
 };
@@ -107,6 +108,7 @@ int audit(const AuditArgs& a) {
   o.trainFraction = a.train;
   o.maxEvaluations = a.maxEvals;
   o.alpha = a.alpha;
+  o.residualFrames = a.residualFrames;
   o.replay.threads = std::max(1, tbb::info::default_concurrency() / std::max(1, a.jobs));
   o.replay.score.maxPoints = a.points;
   o.replay.score.useWrench = !a.noWrench;
@@ -134,17 +136,7 @@ int audit(const AuditArgs& a) {
   const fs::path augmentedPath = fs::absolute(dir) / (fs::path(a.scene).stem().string() + "_audited.xml");
   // Input files are named relative to the scene's folder: absolute in the new file, so that it
   // runs from anywhere. Outputs (exporters, cameras) stay relative to --out.
-  std::function<void(ElementDesc&)> absolutise = [&](ElementDesc& el) {
-    const ComponentSpec* spec = builtinRegistry().find(el.tag);
-    if (spec && spec->category != "output" && spec->category != "sensor")
-      for (auto& at : el.attrs) {
-        const AttrSpec* a = spec->find(at.name);
-        if (a && a->kind == AttrKind::File && !at.value.empty() && fs::path(at.value).is_relative())
-          at.value = (sceneDir / at.value).lexically_normal().string();
-      }
-    for (auto& c : el.children) absolutise(c);
-  };
-  absolutise(augmented.root);
+  absolutiseInputs(augmented.root, sceneDir);
   io::writeScene(augmentedPath.string(), augmented,
                  "Written by viscera audit from " + fs::absolute(a.scene).string() + " and the dataset " +
                      fs::absolute(a.data).string() + "; effects added: " +
@@ -187,12 +179,12 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   auto a = std::make_shared<AuditArgs>();
   auto* cmd = app.add_subcommand("audit", "find where a scene disagrees with a dataset and which missing effect explains it");
   cmd->footer(
-      "Effects: gravity, youngModulus, poissonRatio, damping, friction, instrumentRadius, elasticFoundation,\n"
-      "registration. Outputs: OUT/report.md, "
+      "Effects: gravity, youngModulus, poissonRatio, inclusion, damping, friction, instrumentRadius,\n"
+      "elasticFoundation, registration. Outputs: OUT/report.md, "
       "OUT/report.json and OUT/<scene>_audited.xml (the scene with the effects found). See docs/user-guide.md,\n"
       "\"Model audit\".");
-  cmd->add_option("scene", a->scene, "scene file whose instrument is driven by a TrajectoryDriver")->required();
-  cmd->add_option("--data", a->data, "dataset folder (see `viscera dataset`)")->required();
+  cmd->add_option("scene", a->scene, "scene file whose instrument is driven by a TrajectoryDriver");
+  auto* data = cmd->add_option("--data", a->data, "dataset folder (see `viscera dataset`)");
   cmd->add_option("--out", a->out, "output folder (audit)");
   cmd->add_option("--effects", a->effects, "effects to try (default: all)")->delimiter(',');
   cmd->add_option("--jobs", a->jobs, "effects fitted at once (1)")->check(CLI::Range(1, 1024));
@@ -206,7 +198,31 @@ void addAuditCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_flag("--quiet", a->quiet, "no progress lines");
   cmd->add_flag("--no-plot", a->noPlot, "do not run gnuplot");
   cmd->add_flag("--no-residuals", a->noResiduals, "do not write the per-frame residual series (OUT/residuals)");
-  cmd->callback([a, &action] { action = [a] { return audit(*a); }; });
+  cmd->add_option("--residual-frames", a->residualFrames, "frames per residual series at most, evenly spaced (150; 0: all)")
+      ->check(CLI::Range(0, 100000000));
+  cmd->callback([a, cmd, data, &action] {
+    if (cmd->got_subcommand("bench")) return;
+    if (a->scene.empty()) throw CLI::RequiredError("scene");
+    if (data->count() == 0) throw CLI::RequiredError("--data");
+    action = [a] { return audit(*a); };
+  });
+
+  auto b = std::make_shared<AuditBenchArgs>();
+  auto* bench = cmd->add_subcommand("bench", "plant every effect over seeds and strengths, audit each case, and print the "
+                                             "confusion matrix, detection and false-discovery rates");
+  bench->footer("Each case: the scene with one effect planted (Effect::plant; controls plant none), filmed by its own depth\n"
+                "camera at 10 Hz with the instrument's wrench plus noise, audited with the scene as the nominal model.\n"
+                "Writes OUT/bench.md and OUT/bench.json. See docs/user-guide.md, \"Model audit\".");
+  bench->add_option("scene", b->scene, "scene file whose instrument is driven by a TrajectoryDriver")->required();
+  bench->add_option("--time", b->time, "simulated time of each case, in seconds")->required()->check(CLI::PositiveNumber);
+  bench->add_option("--out", b->out, "output folder, must not exist (audit-bench)");
+  bench->add_option("--effects", b->effects, "effects to plant (default: every one that applies)")->delimiter(',');
+  bench->add_option("--strengths", b->strengths, "planting strengths in (0, 1] (0.5,1)")->delimiter(',');
+  bench->add_option("--seeds", b->seeds, "seeds per effect and strength, and controls (2)")->check(CLI::Range(1, 1000));
+  bench->add_option("--jobs", b->jobs, "effects fitted at once in each audit (1)")->check(CLI::Range(1, 1024));
+  bench->add_option("--force-noise", b->forceNoise, "noise on each force component of the wrench (\"2 mN\")");
+  bench->add_flag("--keep", b->keep, "keep each case's truth scene and dataset under OUT");
+  bench->callback([b, &action] { action = [b] { return auditBench(*b); }; });
 }
 
 }  // namespace viscera

@@ -165,10 +165,11 @@ void CameraOptionSet::declare(CLI::App& cmd) {
 
 void CameraOptionSet::apply(SceneDesc& desc, const std::map<std::string, std::string>& defaults) const {
   std::vector<std::string> given;
+  // Options never declared (a set used from code, not a command line) count as not given.
   for (const AttributeOption& a : attributes_)
-    if (a.option->count() > 0) given.push_back(a.flag);
+    if (a.option && a.option->count() > 0) given.push_back(a.flag);
   for (const CLI::Option* f : {asciiFlag_, tissueFlag_, nameOption_})
-    if (f->count() > 0) given.push_back(f->get_name());
+    if (f && f->count() > 0) given.push_back(f->get_name());
   if (hasDepthCamera(desc.root)) {
     if (!given.empty())
       throw Error(SourceLoc{desc.file}, "the scene has its own DepthCamera; camera options (" + given.front() +
@@ -177,7 +178,7 @@ void CameraOptionSet::apply(SceneDesc& desc, const std::map<std::string, std::st
   }
   const bool placed = std::any_of(attributes_.begin(), attributes_.end(), [](const AttributeOption& a) {
     const std::string attr = a.attribute;
-    return (attr == "position" || attr == "lookAt" || attr == "transform") && a.option->count() > 0;
+    return (attr == "position" || attr == "lookAt" || attr == "transform") && a.option && a.option->count() > 0;
   });
   if (!placed)
     throw Error(SourceLoc{desc.file}, "the scene has no DepthCamera; place one with --position and --look-at (or --transform)");
@@ -187,7 +188,7 @@ void CameraOptionSet::apply(SceneDesc& desc, const std::map<std::string, std::st
   el.loc = SourceLoc{"camera options"};
   el.attrs.push_back({"name", name, SourceLoc{"--name"}});
   for (const AttributeOption& a : attributes_) {
-    if (a.option->count() == 0) continue;
+    if (!a.option || a.option->count() == 0) continue;
     std::string value = listText(a.value);
     // A transform file given on the command line is relative to the working folder, not the scene.
     if (std::string(a.attribute) == "transform") value = std::filesystem::absolute(a.value).string();

@@ -39,16 +39,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct MakeOptions {
-  std::string scene, out, forceNoise = "0", torqueNoise = "0";
-  std::vector<std::string> sets;
-  double time = 0;
-  int steps = -1;
-  unsigned seed = 1;
-  bool noWrench = false, quiet = false;
-  CameraOptionSet camera;
-};
-
 // Records the instrument's pose at the start and after every step: the trajectory it followed,
 // in the scene frame, whatever drove it.
 class PoseRecorder : public RunObserver {
@@ -112,7 +102,9 @@ std::string wrenchTable(const RunResult::Instrument& in, double forceSigma, doub
   return s.str();
 }
 
-int make(const MakeOptions& o) {
+}  // namespace
+
+int makeDataset(const DatasetMakeOptions& o) {
   if (fs::exists(o.out)) throw Error(SourceLoc{o.out}, "--out: already exists; a dataset is written to a new folder (nothing was changed)");
   const fs::path parent = fs::absolute(o.out).parent_path();
   if (!fs::is_directory(parent)) throw Error(SourceLoc{o.out}, "--out: the folder " + parent.string() + " does not exist");
@@ -197,9 +189,11 @@ int make(const MakeOptions& o) {
   if (ec) throw Error(SourceLoc{o.out}, "cannot move the dataset into place: " + ec.message() + " (kept at " + temp.string() + ")");
   if (!o.quiet)
     for (const auto& l : check.lines) std::cerr << l << "\n";
-  std::cerr << "wrote the dataset " << o.out << "\n";
+  if (!o.quiet) std::cerr << "wrote the dataset " << o.out << "\n";
   return kExitOk;
 }
+
+namespace {
 
 int check(const std::string& folder) {
   const study::DatasetReport r = study::checkDataset(folder);
@@ -223,7 +217,7 @@ void addDatasetCommand(CLI::App& app, std::function<int()>& action) {
   cmd->footer("A dataset is a folder: trajectory.csv, camera/index.csv with the frames, camera_to_scene.txt, optionally\n"
               "wrench.csv and README.txt (docs/user-guide.md, \"Datasets\").");
 
-  auto o = std::make_shared<MakeOptions>();
+  auto o = std::make_shared<DatasetMakeOptions>();
   auto* mk = cmd->add_subcommand("make", "run a scene with its instrument and a depth camera and write a dataset");
   mk->footer("The camera options are those of `viscera camera`; the added camera keeps the tissue's points only and takes\n"
              "10 frames per second unless --rate says otherwise. The trajectory is the instrument's pose at every step.");
@@ -238,7 +232,7 @@ void addDatasetCommand(CLI::App& app, std::function<int()>& action) {
   mk->add_flag("--no-wrench", o->noWrench, "write no wrench.csv (a dataset of clouds only)");
   mk->add_flag("--quiet", o->quiet, "no notes, progress or summary");
   o->camera.declare(*mk);
-  mk->callback([o, &action] { action = [o] { return make(*o); }; });
+  mk->callback([o, &action] { action = [o] { return makeDataset(*o); }; });
 
   auto folder = std::make_shared<std::string>();
   auto* ck = cmd->add_subcommand("check", "validate a dataset folder and print what it holds");

@@ -60,6 +60,11 @@ class Effect {
   virtual std::optional<RigidTransform> cloudCorrection(const std::vector<double>& values, const AuditScene& scene) const {
     return std::nullopt;
   }
+  // Values that plant this effect in a ground truth at `strength` (0: none, 1: strong), for
+  // `viscera audit bench`; `seed` varies it where that matters (an inclusion's place). By default
+  // each parameter moves from its nominal value toward the farther end of its range (log or
+  // linear) by strength / 2 of the way.
+  virtual std::vector<double> plant(const AuditScene& scene, double strength, unsigned seed) const;
   // Whether apply() changes what the scene simulates. An effect that only corrects the clouds is
   // fitted by scoring one recorded replay again, without running the scene.
   virtual bool changesSimulation() const { return true; }

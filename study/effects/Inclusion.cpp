@@ -8,6 +8,7 @@
 // no minimiser can walk; the share is smooth in both.
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "study/effects/Effect.h"
 
@@ -37,9 +38,19 @@ class Inclusion : public Effect {
             {"radius", 0.1 * small, 0.5 * small, r0, Scale::Linear, "scene length"},
             {"ratio", 0.1, 10.0, 1.0, Scale::Log, ""}};
   }
+  // A sphere of a third of the tissue's smallest size, somewhere in the middle half of its box,
+  // 1 + 3 x strength times stiffer.
+  std::vector<double> plant(const AuditScene& s, double strength, unsigned seed) const override {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.25, 0.75);
+    const Eigen::Vector3d lo = s.tissueBox.min(), size = s.tissueBox.sizes();
+    return {lo.x() + u(rng) * size.x(), lo.y() + u(rng) * size.y(), lo.z() + u(rng) * size.z(), size.minCoeff() / 3,
+            1 + 3 * strength};
+  }
   void apply(SceneDesc& desc, const std::vector<double>& v, const AuditScene& s) const override {
     const Eigen::Vector3d c(v.at(0), v.at(1), v.at(2));
     const double r = v.at(3), ratio = v.at(4);
+    if (ratio == 1) return;  // as stiff as the rest: no change (and the audit need not replay it)
     const auto fems = elementsOf(desc.root, "TetrahedronFEMForceField");
     for (size_t f = 0; f < fems.size() && f < s.femElements.size(); ++f) {
       const Eigen::Matrix3Xd& X = s.femElements[f];

@@ -1,4 +1,6 @@
 // The effect library and the helpers effects share.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "builtin/Builtins.h"
@@ -59,6 +61,19 @@ std::vector<double> realsOf(const ElementDesc& el, const std::string& attribute,
     throw Error(given ? given->loc : el.loc, el.tag + "." + attribute + ": " + e.what());
   }
   return v.nums;
+}
+
+std::vector<double> Effect::plant(const AuditScene& scene, double strength, unsigned) const {
+  std::vector<double> v;
+  for (const EffectParam& p : params(scene)) {
+    const bool log = p.scale == Scale::Log;
+    auto u = [&](double x) { return log ? std::log10(x) : x; };
+    const double n = u(std::clamp(p.nominal, p.lo, p.hi)), lo = u(p.lo), hi = u(p.hi);
+    const double far = hi - n >= n - lo ? hi : lo;
+    const double x = n + 0.5 * strength * (far - n);
+    v.push_back(log ? std::pow(10.0, x) : x);
+  }
+  return v;
 }
 
 bool isLink(const ElementDesc& el, const std::string& attribute) {

@@ -167,6 +167,29 @@ TEST_F(SearchCli, AuditNamesTheModulusAndWritesARunnableScene) {
   EXPECT_FALSE(fs::exists(sourcePath("tests/data/study/block.pvd")));
 }
 
+// The bench plants each effect asked for (and a control), audits every case and counts: a
+// stiffer tissue and a larger instrument are named, the control names none.
+TEST_F(SearchCli, AuditBenchCountsWhatIsNamed) {
+  const RunResult r = runViscera({"audit", "bench", blockScene(), "--time", "3", "--effects", "youngModulus,instrumentRadius",
+                                  "--strengths", "1", "--seeds", "1", "--jobs", "2", "--force-noise", "1 mN", "--out",
+                                  tmp_ / "bench"});
+  ASSERT_EQ(r.rc, 0) << r;
+  const auto j = nlohmann::json::parse(slurp(tmp_.path() / "bench" / "bench.json"));
+  ASSERT_EQ(j["cases"].size(), 3u);
+  for (const auto& c : j["cases"]) EXPECT_EQ(c["named"], c["planted"]) << c.dump();
+  EXPECT_DOUBLE_EQ(j["detection_rate"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(j["false_discovery_rate"].get<double>(), 0.0);
+  const std::string md = slurp(tmp_.path() / "bench" / "bench.md");
+  EXPECT_NE(md.find("| planted \\ named |"), std::string::npos) << md;
+  EXPECT_NE(r.out.find("Detection rate"), std::string::npos);
+  // An existing --out is refused and left as it was.
+  const RunResult again = runViscera({"audit", "bench", blockScene(), "--time", "3", "--effects", "gravity", "--out", tmp_ / "bench"});
+  EXPECT_EQ(again.rc, 2) << again;
+  EXPECT_NE(again.err.find("already exists"), std::string::npos) << again;
+  // The audit itself still wants its scene and data.
+  EXPECT_NE(runViscera({"audit", blockScene()}).rc, 0);
+}
+
 // kill -9 in the middle of a batch leaves a results table that the rerun reads and completes,
 // equal to an uninterrupted run's.
 TEST_F(SearchCli, AKilledSearchResumesToTheSameTable) {

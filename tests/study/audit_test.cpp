@@ -41,7 +41,11 @@ study::AuditReport auditPlanted(const Planted& p, const TempDir& dir, const std:
 std::string summary(const study::AuditReport& r) {
   std::string s = r.verdict + ";";
   for (const auto& rd : r.rounds)
-    for (const auto& c : rd.candidates) s += " " + c.effect + " dBIC " + std::to_string(c.deltaBic) + " p " + std::to_string(c.pValue);
+    for (const auto& c : rd.candidates) {
+      s += " " + c.effect + " dBIC " + std::to_string(c.deltaBic) + " p " + std::to_string(c.pValue) + " (";
+      for (double v : c.values) s += " " + std::to_string(v);
+      s += ")";
+    }
   return s;
 }
 
@@ -127,7 +131,7 @@ TEST(Audit, ARegistrationErrorIsNamedAndCorrected) {
   ASSERT_FALSE(r.found.empty()) << summary(r);
   EXPECT_EQ(r.found.front(), "registration") << summary(r);
   ASSERT_TRUE(r.cloudCorrection.has_value());
-  for (const Eigen::Vector3d p : {Eigen::Vector3d(0, 0, 20), Eigen::Vector3d(40, 0, 20), Eigen::Vector3d(40, 20, 20),
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 20), Eigen::Vector3d(40, 0, 20), Eigen::Vector3d(40, 20, 20),
                                   Eigen::Vector3d(0, 20, 0)})
     EXPECT_LT((*r.cloudCorrection * (error * p) - p).norm(), 1.0) << p.transpose();
   EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
@@ -154,6 +158,50 @@ TEST(Audit, TwoHiddenEffectsAreBothNamed) {
   EXPECT_NEAR(r.jointValues[radiusFirst ? 0 : 1], 6.5, 1.3);
   EXPECT_NEAR(r.jointValues[radiusFirst ? 1 : 0], 2.0, 0.4);
   EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
+}
+
+// Heterogeneous tissue, written as SOFA scenes write it (SphereROI, IndexValueMapper, a linked
+// per-element modulus): the truth's top middle is four times stiffer, and the dataset palpates
+// three places along the top, not the one poke the audited scene was written with. The audit must
+// name `inclusion`, stiffer, centred over the stiff region.
+TEST(Audit, AStiffInclusionIsNamedAndPlaced) {
+  TempDir dir;
+  std::string xml = slurp(studyData("block.xml"));
+  const std::string fem = "<TetrahedronFEMForceField name=\"fem\" method=\"large\" youngModulus=\"5 kPa\" poissonRatio=\"0.4\"/>";
+  ASSERT_NE(xml.find(fem), std::string::npos);
+  // 24 tetrahedra (the four grid cells of x 10..30, z 10..20) have their four vertices within
+  // 18 mm of (20, 10, 20): a stiff region centred at (20, 10, 15).
+  std::string all;
+  for (int e = 0; e < 4 * 2 * 2 * 6; ++e) all += (e ? " " : "") + std::string("5000");
+  xml.replace(xml.find(fem), fem.size(),
+              "<IndexValueMapper name=\"all\" inputValues=\"" + all + "\"/>"
+              "<SphereROI name=\"roi\" centers=\"20 10 20\" radii=\"18\"/>"
+              "<IndexValueMapper name=\"young\" indices=\"@roi.tetrahedronIndices\" value=\"20000\" inputValues=\"@all.outputValues\"/>"
+              "<TetrahedronFEMForceField name=\"fem\" method=\"large\" youngModulus=\"@young.outputValues\" poissonRatio=\"0.4\"/>");
+  xml.replace(xml.find("poke.csv"), 8, "three_pokes.csv");
+  writeText(dir.path() / "truth.xml", xml);
+  writeText(dir.path() / "three_pokes.csv",
+            "t,x,y,z,qx,qy,qz,qw\n0,6,10,30,0,0,0,1\n0.5,6,10,25.5,0,0,0,1\n1,6,10,22.5,0,0,0,1\n1.5,6,10,25.5,0,0,0,1\n"
+            "2,20,10,25.5,0,0,0,1\n2.5,20,10,22.5,0,0,0,1\n3,20,10,25.5,0,0,0,1\n3.5,34,10,25.5,0,0,0,1\n"
+            "4,34,10,22.5,0,0,0,1\n4.5,34,10,25.5,0,0,0,1\n5,34,10,30,0,0,0,1\n");
+  const RunResult made = runViscera({"dataset", "make", dir / "truth.xml", "--out", dir / "data", "--time", "5",
+                                     "--position", "20 -200 250", "--look-at", "20 10 10", "--force-noise", "0.001 N",
+                                     "--quiet"});
+  ASSERT_EQ(made.rc, 0) << made;
+  study::AuditOptions o;
+  o.jobs = 2;
+  const study::PreparedDataset data = study::prepareDataset(dir / "data", o.replay.score);
+  const study::AuditReport r = study::runAudit(blockScene(), data, o);
+  ASSERT_FALSE(r.rounds.empty()) << summary(r);
+  ASSERT_TRUE(r.rounds.front().confirmed) << summary(r);
+  const study::EffectFit& f = r.rounds.front().candidates.front();
+  ASSERT_EQ(f.effect, "inclusion") << summary(r);
+  ASSERT_EQ(f.values.size(), 5u);
+  EXPECT_NEAR(f.values[0], 20, 3) << summary(r);  // x
+  EXPECT_NEAR(f.values[1], 10, 3) << summary(r);  // y
+  EXPECT_GT(f.values[4], 1.5) << summary(r);      // stiffer
+  EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
+  EXPECT_NE(viscera::io::formatScene(r.augmented).find("audit effect 'inclusion'"), std::string::npos);
 }
 
 INSTANTIATE_TEST_SUITE_P(Audit, PlantedEffect,
