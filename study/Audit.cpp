@@ -2,11 +2,15 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <cstdio>
 #include <boost/math/distributions/normal.hpp>
 #include <boost/math/distributions/students_t.hpp>
 #include <boost/math/tools/minima.hpp>
 #include <cmath>
 #include <filesystem>
+#include <future>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <nlopt.hpp>
@@ -200,7 +204,9 @@ struct FitMode {
   bool heldOut = true;   // score the fit on the held-out window
   bool screen = false;   // give up unless a step either way improves the training score
   int budget = 0;        // replays at most (0: --max-evals, or 2 n + 7 for n parameters when more)
+  bool coarse = false;   // enough to rank: only the effect's coarseParams() move
   const std::vector<double>* startAt = nullptr;  // refine from these values (a coarse fit's)
+  const std::vector<double>* hint = nullptr;     // screen toward these values (the last round's fit)
 };
 
 class Auditor {
@@ -220,10 +226,13 @@ class Auditor {
     rep.splitTime = data_.data.start() + o_.trainFraction * (data_.data.end() - data_.data.start());
     split_ = rep.splitTime;
 
-    say("noise: estimating the depth noise from the clouds");
-    rep.noiseFloorMm = depthNoise() / scales_.mm;
-    say("nominal: replaying the dataset through the scene");
+    // The depth noise (from the clouds alone) and the nominal replay, side by side with --jobs 2 or more.
+    say("nominal: replaying the dataset through the scene; noise: estimating the depth noise from the clouds");
+    auto noise = std::async(o_.jobs > 1 ? std::launch::async : std::launch::deferred, [this] { return depthNoise(); });
     ReplayScore base = replayFull(nominal, folder(o_.residualsBefore));
+    const auto [floor, floorSe] = noise.get();
+    rep.noiseFloorMm = floor / scales_.mm;
+    rep.noiseFloorSeMm = floorSe / scales_.mm;
     if (!base.ok()) throw Error(SourceLoc{scene.file}, "the nominal scene does not replay the dataset: " + base.reason);
     rep.before = localise(base, scales_, o_.alpha, rep.noiseFloorMm);
     if (wrench_) {
@@ -251,7 +260,12 @@ class Auditor {
       // Candidates are tried while anything stands above the noise; the confirmation test, not
       // this gate, keeps a control from naming an effect.
       const double gap = heldBase.mmMean();
-      if (atNoise(gap, last, rep, 1.0)) break;
+      const bool quiet = atNoise(gap, last, rep, 1.0);
+      say("held-out gap " + formatNumber(gap) + " mm against the noise floor " + formatNumber(rep.noiseFloorMm) + " +- " +
+          formatNumber(rep.noiseFloorSeMm) + " mm" +
+          (std::isfinite(lastForceRatio_) ? "; force error " + formatNumber(lastForceRatio_) + " x its noise" : std::string()) +
+          (quiet ? ": at the noise level" : ""));
+      if (quiet) break;
       as = describe(current, &last);
       say("round " + std::to_string(round + 1) + ": fitting " + std::to_string(remaining.size()) + " effects");
       AuditRound r = fitAll(current, last, as, remaining, heldBase, round > 0);
@@ -265,14 +279,16 @@ class Auditor {
             notes_.push_back("effect '" + c.effect + "' is flat over its range in round " + std::to_string(round + 1) +
                              ": later rounds do not fit it again");
         }
-      refineWinner(r, current, last, as, heldBase);
+      refineLeaders(r, current, last, as, heldBase);
+      for (const EffectFit& c : r.candidates)
+        if (c.status == "ok" && !c.screened) lastFit_[c.effect] = c.values;
       // Holm: the smallest p is compared with alpha / m.
       const EffectFit& best = r.candidates.front();
       r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable &&
                     best.pValue < o_.alpha / static_cast<double>(r.candidates.size());
       if (r.candidates.size() > 1) {
         r.runnerUp = r.candidates[1].effect;
-        r.margin = (best.heldoutBefore - best.heldoutAfter) - (r.candidates[1].heldoutBefore - r.candidates[1].heldoutAfter);
+        r.margin = r.candidates[1].deltaBic - best.deltaBic;
       }
       if (!r.confirmed) {
         r.heldoutAfterMm = gap;
@@ -315,8 +331,12 @@ class Auditor {
  private:
   static constexpr double kInf = std::numeric_limits<double>::infinity();
 
+  // A progress line, stamped with the seconds since the audit started.
   void say(const std::string& s) {
-    if (progress_) progress_->message(s);
+    if (!progress_) return;
+    char stamp[24];
+    std::snprintf(stamp, sizeof stamp, "[%6.1f s] ", std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+    progress_->message(stamp + s);
   }
 
   std::vector<std::string> effectKeys() const {
@@ -355,7 +375,7 @@ class Auditor {
 
   // The clouds' depth noise (scene units): the median over up to eight frames spread through
   // the dataset, each read again at full resolution, in the camera frame when the dataset has one.
-  double depthNoise() const {
+  std::pair<double, double> depthNoise() const {
     std::vector<double> v;
     cloud::ReadOptions ro;
     ro.dropNonFinite = true;
@@ -373,9 +393,15 @@ class Auditor {
                                                                      : cloud::NoiseNeighbours::Space);
       if (std::isfinite(e)) v.push_back(e);
     }
-    if (v.empty()) return 0;
+    if (v.empty()) return {0.0, 0.0};
     std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
+    const double median = v[v.size() / 2];
+    // The median's standard error from the spread between frames (MAD, normal consistency).
+    std::vector<double> dev;
+    for (double x : v) dev.push_back(std::abs(x - median));
+    std::sort(dev.begin(), dev.end());
+    const double se = v.size() > 1 ? 1.2533 * 1.4826 * dev[dev.size() / 2] / std::sqrt(static_cast<double>(v.size())) : 0.0;
+    return {median, se};
   }
 
   // Applies the found effects to `desc`, all but effect `skip` (skip = count: none skipped), and
@@ -421,21 +447,54 @@ class Auditor {
     correction_.reset();
   }
 
-  // The candidates were fitted coarsely, enough to rank them; the first is refitted from its
-  // values within a small bracket (it only improves) before it is tested.
-  void refineWinner(AuditRound& r, const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
-                    const Items& heldBase) {
-    EffectFit& best = r.candidates.front();
-    const Effect& e = effect(best.effect);
-    if (best.status != "ok" || best.screened || !best.identifiable || !e.changesSimulation()) return;
-    say("refine " + best.effect);
-    FitMode mode;
-    mode.startAt = &best.values;
-    mode.budget = std::max(4, o_.maxEvaluations / 2);
-    EffectFit refined = fit(e, best.params, current, as, heldBase, &recorded, mode);
-    if (refined.status != "ok" || refined.trainAfter > best.trainAfter) return;
-    refined.evaluations += best.evaluations;
-    best = std::move(refined);
+  // The candidates were fitted coarsely, enough to rank them. The first --jobs of them (at least
+  // two, when there are) are refitted from their values within a small bracket, side by side,
+  // and ranked again: a refined fit only improves, and a close runner-up gets its chance.
+  void refineLeaders(AuditRound& r, const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
+                     const Items& heldBase) {
+    const size_t n = std::min(r.candidates.size(), static_cast<size_t>(std::max(2, o_.jobs)));
+    std::vector<size_t> todo;
+    for (size_t i = 0; i < n; ++i) {
+      const EffectFit& c = r.candidates[i];
+      if (c.status == "ok" && !c.screened && c.identifiable && c.deltaBic < 0 && effect(c.effect).changesSimulation())
+        todo.push_back(i);
+    }
+    if (todo.empty()) return;
+    std::string names;
+    for (size_t i : todo) names += (names.empty() ? "" : ", ") + r.candidates[i].effect;
+    say("refine " + names);
+    std::vector<EffectFit> refined(todo.size());
+    std::vector<std::thread> pool;
+    std::exception_ptr failure;
+    std::mutex mutex;
+    auto work = [&](size_t k) {
+      try {
+        const EffectFit& c = r.candidates[todo[k]];
+        FitMode mode;
+        mode.startAt = &c.values;
+        // Brent in a small bracket needs few replays; BOBYQA 2 n + 1 for its first model.
+        mode.budget = c.params.size() == 1 ? std::max(4, o_.maxEvaluations / 4) : 2 * static_cast<int>(c.params.size()) + 3;
+        refined[k] = fit(effect(c.effect), c.params, current, as, heldBase, &recorded, mode);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!failure) failure = std::current_exception();
+      }
+    };
+    for (size_t k = 1; k < todo.size() && static_cast<int>(k) < o_.jobs; ++k) pool.emplace_back(work, k);
+    for (size_t k = 0; k < todo.size(); ++k)
+      if (k == 0 || static_cast<int>(k) >= o_.jobs) work(k);
+    for (auto& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
+    for (size_t k = 0; k < todo.size(); ++k) {
+      EffectFit& c = r.candidates[todo[k]];
+      if (refined[k].status != "ok" || refined[k].trainAfter > c.trainAfter) continue;
+      refined[k].evaluations += c.evaluations;
+      c = std::move(refined[k]);
+    }
+    std::stable_sort(r.candidates.begin(), r.candidates.end(), [](const EffectFit& a, const EffectFit& b) {
+      if ((a.status == "ok") != (b.status == "ok")) return a.status == "ok";
+      return a.deltaBic < b.deltaBic;
+    });
   }
 
   // A residual folder, created (empty: none).
@@ -450,7 +509,8 @@ class Auditor {
   // Whether the held-out gaps are within `factor` x their noise: the cloud gap against the depth
   // noise and, with a wrench, the RMS force error against the force measured out of contact.
   bool atNoise(double gapMm, const ReplayScore& last, const AuditReport& rep, double factor) const {
-    bool cloud = gapMm <= factor * rep.noiseFloorMm;
+    // The floor is an estimate: a gap within twice its standard error of it is not above it.
+    bool cloud = gapMm <= factor * rep.noiseFloorMm + 2 * rep.noiseFloorSeMm;
     bool force = true;
     if (wrench_ && std::isfinite(rep.forceNoise)) {
       double ss = 0;
@@ -458,6 +518,7 @@ class Auditor {
       for (const auto& w : last.samples)
         if (w.time > split_) ss += w.value * w.value, ++n;
       force = n == 0 || std::sqrt(ss / n) <= factor * rep.forceNoise;
+      if (n > 0) lastForceRatio_ = std::sqrt(ss / n) / rep.forceNoise;
     }
     return cloud && force;
   }
@@ -505,8 +566,14 @@ class Auditor {
           }
           FitMode mode;
           mode.screen = screen;
-          // Coarse: enough to rank the candidates; the winner is refined (refineWinner).
-          mode.budget = params.size() == 1 ? std::max(6, o_.maxEvaluations / 2) : 2 * static_cast<int>(params.size()) + 3;
+          const auto previous = lastFit_.find(e.key());
+          if (previous != lastFit_.end()) mode.hint = &previous->second;
+          // Coarse: enough to rank the candidates; the leaders are refined (refineLeaders).
+          // A line search takes 6 to 8 replays; BOBYQA's first model of n parameters 2 n + 1.
+          mode.coarse = true;
+          const size_t lines = e.coarseParams().empty() ? params.size() : e.coarseParams().size();
+          mode.budget = lines < params.size() || lines == 1 ? static_cast<int>(lines) * std::max(6, o_.maxEvaluations / 2)
+                                                            : 2 * static_cast<int>(params.size()) + 3;
           EffectFit f = fit(e, params, current, as, heldBase, &recorded, mode);
           std::lock_guard<std::mutex> lock(mutex);
           say("  " + f.effect + ": " + (f.screened ? std::string("no better near the scene's values") : f.status) + (f.status == "ok" && !f.screened ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
@@ -564,7 +631,7 @@ class Auditor {
     const size_t d = params.size();
     const bool cloudOnly = !e.changesSimulation();
     // A replay is the cost: an effect that only moves the clouds gets many more evaluations.
-    const int budget = cloudOnly      ? std::max(4 * o_.maxEvaluations, 40)
+    const int budget = cloudOnly      ? std::max(5 * o_.maxEvaluations / 2, 20)
                        : mode.budget > 0 ? mode.budget
                                          : std::max(o_.maxEvaluations, d > 1 ? 2 * static_cast<int>(d) + 7 : 0);
     auto toU = [&](size_t j, double v) { return params[j].scale == Scale::Log ? std::log10(v) : v; };
@@ -584,6 +651,10 @@ class Auditor {
       nominalInside = nominalInside && params[j].nominal >= params[j].lo && params[j].nominal <= params[j].hi;
       s0[j] = b > a ? (toU(j, std::clamp(params[j].nominal, params[j].lo, params[j].hi)) - a) / (b - a) : 0.5;
     }
+    // The parameters a coarse fit moves, in the order it moves them; a refinement moves them all.
+    std::vector<size_t> order = mode.coarse ? e.coarseParams() : std::vector<size_t>();
+    if (order.empty())
+      for (size_t j = 0; j < d; ++j) order.push_back(j);
     double lo = kInf, hi = -kInf, seTrain = 0;
     std::vector<double> bestS;
     double bestM = kInf;
@@ -604,6 +675,11 @@ class Auditor {
       }
       seen.push_back({s, m, it});
       return m;
+    };
+    auto itemsAt = [&](const std::vector<double>& s) {
+      for (const Seen& x : seen)
+        if (x.s == s) return x.items;
+      return Items();
     };
     const std::string currentText = nominalIsCurrent && !cloudOnly ? io::formatScene(current) : std::string();
     auto evaluate = [&](const std::vector<double>& s) {
@@ -634,21 +710,42 @@ class Auditor {
     const double base = f.trainBefore;
     bool flat = false;
     if (screen && nominalIsCurrent && !cloudOnly) {
-      // Later rounds: a step either way along each parameter must lower the training score by
-      // more than twice the paired standard error, or the effect is not fitted again.
-      const Items baseItems = seen.front().items;
-      bool better = false;
-      for (size_t j = 0; j < d && !better; ++j)
-        for (double dir : {-1.0, 1.0}) {
-          std::vector<double> p = s0;
-          p[j] = std::clamp(s0[j] + dir * 0.15, 0.0, 1.0);
-          if (p[j] == s0[j]) continue;
-          const double m = evaluate(p);
-          if (seen.back().s == p && base - m > 2 * pairedSe(baseItems, seen.back().items)) {
-            better = true;
-            break;
-          }
+      // Later rounds: a step must lower the training score by more than twice the paired
+      // standard error, or the effect is not fitted again. The step goes toward the effect's fit
+      // in the previous round when it moved (what it absorbed then is where a remaining effect
+      // would show); else a step either way along each parameter.
+      const Items baseItems = itemsAt(s0);
+      std::vector<std::vector<double>> probes;
+      if (mode.hint) {
+        std::vector<double> delta(d);
+        double span = 0;
+        for (size_t j = 0; j < d; ++j) {
+          const double a = toU(j, params[j].lo), b = toU(j, params[j].hi);
+          const double u = b > a ? (toU(j, std::clamp(mode.hint->at(j), params[j].lo, params[j].hi)) - a) / (b - a) : 0.5;
+          delta[j] = u - s0[j];
+          span = std::max(span, std::abs(delta[j]));
         }
+        if (span > 1e-3) {
+          std::vector<double> p(d);
+          for (size_t j = 0; j < d; ++j) p[j] = std::clamp(s0[j] + delta[j] * std::min(1.0, 0.15 / span), 0.0, 1.0);
+          probes.push_back(p);
+        }
+      }
+      if (probes.empty())
+        for (size_t j : order)
+          for (double dir : {-1.0, 1.0}) {
+            std::vector<double> p = s0;
+            p[j] = std::clamp(s0[j] + dir * 0.15, 0.0, 1.0);
+            if (p[j] != s0[j]) probes.push_back(p);
+          }
+      bool better = false;
+      for (const auto& p : probes) {
+        const double m = evaluate(p);
+        if (seen.back().s == p && base - m > 2 * pairedSe(baseItems, seen.back().items)) {
+          better = true;
+          break;
+        }
+      }
       if (!better) {
         f.screened = true;
         f.values = values(s0);
@@ -669,27 +766,28 @@ class Auditor {
         from.push_back(b > a ? (toU(j, std::clamp(mode.startAt->at(j), params[j].lo, params[j].hi)) - a) / (b - a) : 0.5);
       }
     }
-    if (!from.empty() && d == 1) {
-      // Refinement of a coarse fit: Brent within a small bracket around it.
-      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget));
-      const double lo1 = std::max(0.0, from[0] - 0.06), hi1 = std::min(1.0, from[0] + 0.06);
-      boost::math::tools::brent_find_minima([&](double x) { return evaluate({std::clamp(x - 1, 0.0, 1.0)}); }, lo1 + 1, hi1 + 1,
-                                            10, it);
-    } else if (d == 1) {
-      // Probe either side of the nominal value first. Downhill on one side: walk that way by
-      // growing steps until the score rises, then Brent inside that bracket. Uphill on both: the
-      // nominal value is a minimum, refined between the probes. Otherwise (flat near the nominal
-      // value, or a nominal value at the end of the range, where a score that first rises may
-      // still fall further on) the ends of the range decide between flat and a search of it all.
-      const double step = 0.15;
-      auto at = [&](double x) { return evaluate({std::clamp(x, 0.0, 1.0)}); };
-      const double a = std::max(0.0, s0[0] - step), b = std::min(1.0, s0[0] + step);
-      const double fa = a < s0[0] ? at(a) : kInf, fb = b > s0[0] ? at(b) : kInf;
-      const double se = seTrain;  // the nominal value's standard error
+    // A search along parameter j from point p (score fp, standard error se), in at most `budget`
+    // replays; returns whether the score is flat along it. Probe either side first. Downhill on
+    // one side: walk that way by growing steps until the score rises, then Brent inside that
+    // bracket. Uphill on both: p is a minimum, refined between the probes. Otherwise (flat near p,
+    // or p at the end of the range, where a score that first rises may still fall further on) the
+    // ends of the range decide between flat and a search of it all.
+    auto line = [&](std::vector<double> p, double fp, double se, size_t j, int budget1) {
+      const double step = 0.15, x0 = p[j];
+      const size_t before = seen.size();
+      double lo1 = fp, hi1 = fp;
+      auto at = [&](double x) {
+        p[j] = std::clamp(x, 0.0, 1.0);
+        const double m = evaluate(p);
+        if (m < 1e30) lo1 = std::min(lo1, m), hi1 = std::max(hi1, m);
+        return m;
+      };
+      const double a = std::max(0.0, x0 - step), b = std::min(1.0, x0 + step);
+      const double fa = a < x0 ? at(a) : kInf, fb = b > x0 ? at(b) : kInf;
       double left = 0, right = 1;
-      if (std::min(fa, fb) < base - se) {
+      if (std::min(fa, fb) < fp - se) {
         const double dir = fa <= fb ? -1 : 1;
-        double prev = s0[0], cur = dir < 0 ? a : b, fcur = std::min(fa, fb), len = step;
+        double prev = x0, cur = dir < 0 ? a : b, fcur = std::min(fa, fb), len = step;
         left = std::min(prev, cur), right = std::max(prev, cur);
         for (;;) {
           len *= 1.618;
@@ -704,18 +802,32 @@ class Auditor {
             break;
           }
         }
-      } else if (std::isfinite(fa) && std::isfinite(fb) && fa > base + se && fb > base + se) {
+      } else if (std::isfinite(fa) && std::isfinite(fb) && fa > fp + se && fb > fp + se) {
         left = a, right = b;
       } else {
         for (double x : {0.0, 1.0})
-          if (std::abs(x - s0[0]) > step) at(x);
-        flat = hi - lo <= 2 * se;
+          if (std::abs(x - x0) > step) at(x);
+        if (hi1 - lo1 <= 2 * se) return true;
       }
-      if (!flat) {
-        const int used = static_cast<int>(seen.size());
-        boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget - used));
-        // Shifted by 1 so that Brent's relative tolerance (2^-9) is an absolute one of 0.2 to 0.4 %.
-        boost::math::tools::brent_find_minima([&](double x) { return at(x - 1); }, left + 1, right + 1, 10, it);
+      const int used = static_cast<int>(seen.size() - before);
+      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget1 - used));
+      // Shifted by 1 so that Brent's relative tolerance (2^-9) is an absolute one of 0.2 to 0.4 %.
+      boost::math::tools::brent_find_minima([&](double x) { return at(x - 1); }, left + 1, right + 1, 10, it);
+      return false;
+    };
+    if (!from.empty() && d == 1) {
+      // Refinement of a coarse fit: Brent within a small bracket around it.
+      boost::uintmax_t it = static_cast<boost::uintmax_t>(std::max(2, budget));
+      const double lo1 = std::max(0.0, from[0] - 0.06), hi1 = std::min(1.0, from[0] + 0.06);
+      boost::math::tools::brent_find_minima([&](double x) { return evaluate({std::clamp(x - 1, 0.0, 1.0)}); }, lo1 + 1, hi1 + 1,
+                                            10, it);
+    } else if (from.empty() && (d == 1 || order.size() < d)) {
+      // One parameter, or a coarse fit of the few that rank the effect: a line search along each
+      // in turn, from the best point so far; the rest stay where they start until a refinement.
+      flat = true;
+      for (size_t j : order) {
+        const int share = budget / static_cast<int>(order.size());
+        flat = line(bestS.empty() ? s0 : bestS, bestS.empty() ? base : bestM, seTrain, j, share) && flat;
       }
     } else {
       nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
@@ -792,6 +904,9 @@ class Auditor {
   double split_ = 0;
   std::vector<std::string> notes_;
   std::optional<RigidTransform> correction_;  // of the clouds, found by earlier rounds
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  mutable double lastForceRatio_ = kNan;                // held-out RMS force error / force noise, at the last gate
+  std::map<std::string, std::vector<double>> lastFit_;  // each effect's values in the last round it was fitted
 };
 
 }  // namespace
@@ -884,6 +999,7 @@ std::string auditJson(const AuditReport& r, const std::string& scene, const std:
   j["scene"] = scene;
   j["data"] = data;
   j["noise_floor_mm"] = num(r.noiseFloorMm);
+  j["noise_floor_se_mm"] = num(r.noiseFloorSeMm);
   j["force_noise"] = num(r.forceNoise);
   j["verdict"] = r.verdict;
   j["found"] = r.found;

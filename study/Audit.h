@@ -78,12 +78,13 @@ struct AuditRound {
   std::vector<EffectFit> candidates;  // ranked, best first
   bool confirmed = false;             // the first candidate passed the test
   std::string runnerUp;
-  double margin = 0;                  // held-out improvement of the winner - runner-up's (metric units)
+  double margin = 0;                  // runner-up's held-out BIC change - the winner's (>= 0)
   double heldoutBeforeMm = 0, heldoutAfterMm = 0;
 };
 
 struct AuditReport {
   double noiseFloorMm = 0;            // depth noise of the clouds
+  double noiseFloorSeMm = 0;          // its standard error (spread between the frames it is read on)
   double forceNoise = std::numeric_limits<double>::quiet_NaN();  // RMS |measured force| out of contact
   std::string verdict;                // "effects found" or "no missing effect detected"
   std::vector<std::string> found;     // effect keys, in order added

@@ -65,6 +65,10 @@ class Effect {
   // each parameter moves from its nominal value toward the farther end of its range (log or
   // linear) by strength / 2 of the way.
   virtual std::vector<double> plant(const AuditScene& scene, double strength, unsigned seed) const;
+  // The parameters a coarse fit (the one that ranks the candidates) moves, in the order it
+  // moves them, one line search each; the others keep their nominal values until the leaders are
+  // refined. Empty: all of them together.
+  virtual std::vector<size_t> coarseParams() const { return {}; }
   // Whether apply() changes what the scene simulates. An effect that only corrects the clouds is
   // fitted by scoring one recorded replay again, without running the scene.
   virtual bool changesSimulation() const { return true; }

@@ -38,6 +38,8 @@ class Inclusion : public Effect {
             {"radius", 0.1 * small, 0.5 * small, r0, Scale::Linear, "scene length"},
             {"ratio", 0.1, 10.0, 1.0, Scale::Log, ""}};
   }
+  // Ranking needs how much stiffer and how large; the centre starts where the force was missing.
+  std::vector<size_t> coarseParams() const override { return {4, 3}; }
   // A sphere of a third of the tissue's smallest size, somewhere in the middle half of its box,
   // 1 + 3 x strength times stiffer.
   std::vector<double> plant(const AuditScene& s, double strength, unsigned seed) const override {
