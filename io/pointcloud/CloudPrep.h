@@ -99,15 +99,14 @@ PointCloud downsampleToCount(const PointCloud& cloud, int targetCount, double* l
 // neighbours; by 3-D distance otherwise (biased low when the noise is comparable to the spacing).
 enum class NoiseNeighbours { Image, Space };
 
-// The depth noise of a capture, from the capture alone: for at most `samples` points (evenly
-// chosen), the distance to the least-squares plane through its k nearest neighbours (itself
-// included). With independent noise sigma along the normal of a locally flat surface that residual
-// has mean square sigma^2 (1 - 3/k) (a plane has three parameters); the estimate is
-// sqrt(k/(k-3) median(residual^2) / 0.4549) (the median of a squared standard normal is 0.4549),
-// robust to the minority of patches across edges. The patch must be wide against the noise (a
-// plane through a patch hardly wider than the noise follows it and reads low) and narrow against
-// the surface's curvature, which adds to the estimate. NaN for a cloud of fewer than k points.
-// Nearest neighbours through PCL's k-d tree.
+// The depth noise of a capture, from the capture alone: around at most `samples` points (evenly
+// chosen), the least-squares plane through the k nearest neighbours; with independent noise sigma
+// along the normal of a locally flat surface its residual sum of squares is sigma^2 (k - 3) (a
+// plane has three parameters). The estimate is the RMS of those sigmas over the patches, less the
+// patches across edges (a minority far from planar, above four times the median). The patch must
+// be wide against the noise (a plane through a patch hardly wider than the noise follows it and
+// reads low) and narrow against the surface's curvature, which adds to the estimate. NaN for a
+// cloud of fewer than k points. Nearest neighbours through PCL's k-d tree.
 double planeFitNoise(const PointCloud& cloud, int k = 12, int samples = 2000,
                      NoiseNeighbours by = NoiseNeighbours::Image);
 

@@ -220,15 +220,6 @@ PointCloud prepareCloud(const PointCloud& cloud, const PrepOptions& o, PrepRepor
 double planeFitNoise(const PointCloud& cloud, int k, int samples, NoiseNeighbours by) {
   const int n = cloud.size();
   if (k < 4 || n < k) return std::numeric_limits<double>::quiet_NaN();
-  // The plane through points `idx` (centroid, unit normal).
-  auto plane = [&](const std::vector<int>& idx, Eigen::Vector3d& mean, Eigen::Vector3d& normal) {
-    mean.setZero();
-    for (int j : idx) mean += cloud.points.col(j);
-    mean /= static_cast<double>(idx.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (int j : idx) cov += (cloud.points.col(j) - mean) * (cloud.points.col(j) - mean).transpose();
-    normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(0);
-  };
   // Neighbours are found in image coordinates (x/z, y/z) for a camera-frame cloud: a depth error
   // moves a point along its pixel's ray, so it does not change which points are neighbours. In 3-D
   // they would be chosen by the noise itself (points displaced alike look close) and the estimate
@@ -246,20 +237,32 @@ double planeFitNoise(const PointCloud& cloud, int k, int samples, NoiseNeighbour
   const int m = std::min(n, std::max(1, samples));
   std::vector<int> index;
   std::vector<float> d2;
-  std::vector<double> r2;
+  std::vector<double> v;  // each patch's sigma^2: its residual sum of squares / (k - 3)
   for (int s = 0; s < m; ++s) {
     const int i = static_cast<int>(static_cast<long>(s) * n / m);
     if (tree.nearestKSearch((*search)[static_cast<size_t>(i)], k, index, d2) < k) continue;
-    Eigen::Vector3d mean, normal;
-    plane(index, mean, normal);
-    const double r = normal.dot(cloud.points.col(i) - mean);
-    r2.push_back(r * r);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int j : index) mean += cloud.points.col(j);
+    mean /= static_cast<double>(index.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (int j : index) cov += (cloud.points.col(j) - mean) * (cloud.points.col(j) - mean).transpose();
+    // The least-squares plane's residual sum of squares is the scatter's smallest eigenvalue.
+    v.push_back(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues()(0) / (k - 3));
   }
-  if (r2.empty()) return std::numeric_limits<double>::quiet_NaN();
-  // The median of the squared residuals is 0.4549 sigma^2 for Gaussian noise; patches across an
-  // edge or the silhouette, a minority, do not move it.
-  std::nth_element(r2.begin(), r2.begin() + r2.size() / 2, r2.end());
-  return std::sqrt(static_cast<double>(k) / (k - 3) * r2[r2.size() / 2] / 0.45494);
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  // Patches across an edge or the silhouette, a minority, are far from planar: they are left out
+  // by a cut at four times the median patch's sigma^2, which keeps a patch whose noise is half as
+  // large again as the median's even when its own estimate (relative spread sqrt(2 / (k - 3)))
+  // reads high. The mean of the rest is the mean square of the noise, what a residual RMS is
+  // compared with (depth noise grows with depth: the median patch's is lower).
+  std::vector<double> sorted = v;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double cut = 4 * sorted[sorted.size() / 2];
+  double sum = 0;
+  int count = 0;
+  for (double x : v)
+    if (x <= cut) sum += x, ++count;
+  return std::sqrt(sum / count);
 }
 
 }  // namespace viscera::cloud
