@@ -244,6 +244,7 @@ class Auditor {
           ++n;
         }
       if (n > 0) rep.forceNoise = std::sqrt(ss / n);
+      forceNoiseSamples_ = n;
     }
 
     SceneDesc current = nominal;   // what is replayed
@@ -517,7 +518,10 @@ class Auditor {
       int n = 0;
       for (const auto& w : last.samples)
         if (w.time > split_) ss += w.value * w.value, ++n;
-      force = n == 0 || std::sqrt(ss / n) <= factor * rep.forceNoise;
+      // Both are RMS values of three-component noise over many samples: each has a relative
+      // standard error of 1 / sqrt(6 samples), and a ratio within twice theirs is at the noise.
+      const double se = n > 0 && forceNoiseSamples_ > 0 ? std::sqrt(1.0 / (6.0 * n) + 1.0 / (6.0 * forceNoiseSamples_)) : 0.0;
+      force = n == 0 || std::sqrt(ss / n) <= (factor + 2 * se) * rep.forceNoise;
       if (n > 0) lastForceRatio_ = std::sqrt(ss / n) / rep.forceNoise;
     }
     return cloud && force;
@@ -547,7 +551,14 @@ class Auditor {
   }
 
   AuditRound fitAll(const SceneDesc& current, const ReplayScore& recorded, const AuditScene& as,
-                    const std::vector<std::string>& keys, const Items& heldBase, bool screen) {
+                    std::vector<std::string> keys, const Items& heldBase, bool screen) {
+    // The costliest fits first, so that the threads finish together: the most parameters first,
+    // those that only rescore the clouds last.
+    auto cost = [&](const std::string& k) {
+      const Effect& e = effect(k);
+      return e.changesSimulation() ? static_cast<int>(e.params(as).size()) : 0;
+    };
+    std::stable_sort(keys.begin(), keys.end(), [&](const std::string& a, const std::string& b) { return cost(a) > cost(b); });
     std::vector<EffectFit> fits;
     std::mutex mutex;
     std::atomic<size_t> next{0};
@@ -572,8 +583,9 @@ class Auditor {
           // A line search takes 6 to 8 replays; BOBYQA's first model of n parameters 2 n + 1.
           mode.coarse = true;
           const size_t lines = e.coarseParams().empty() ? params.size() : e.coarseParams().size();
-          mode.budget = lines < params.size() || lines == 1 ? static_cast<int>(lines) * std::max(6, o_.maxEvaluations / 2)
-                                                            : 2 * static_cast<int>(params.size()) + 3;
+          mode.budget = lines == 1 ? std::max(6, o_.maxEvaluations / 2)
+                        : lines < params.size() ? static_cast<int>(lines) * std::max(6, o_.maxEvaluations / 3)
+                                                : 2 * static_cast<int>(params.size()) + 3;
           EffectFit f = fit(e, params, current, as, heldBase, &recorded, mode);
           std::lock_guard<std::mutex> lock(mutex);
           say("  " + f.effect + ": " + (f.screened ? std::string("no better near the scene's values") : f.status) + (f.status == "ok" && !f.screened ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
@@ -631,7 +643,7 @@ class Auditor {
     const size_t d = params.size();
     const bool cloudOnly = !e.changesSimulation();
     // A replay is the cost: an effect that only moves the clouds gets many more evaluations.
-    const int budget = cloudOnly      ? std::max(5 * o_.maxEvaluations / 2, 20)
+    const int budget = cloudOnly      ? std::max(3 * o_.maxEvaluations / 2, 2 * static_cast<int>(d) + 9)
                        : mode.budget > 0 ? mode.budget
                                          : std::max(o_.maxEvaluations, d > 1 ? 2 * static_cast<int>(d) + 7 : 0);
     auto toU = [&](size_t j, double v) { return params[j].scale == Scale::Log ? std::log10(v) : v; };
@@ -905,6 +917,7 @@ class Auditor {
   std::vector<std::string> notes_;
   std::optional<RigidTransform> correction_;  // of the clouds, found by earlier rounds
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  int forceNoiseSamples_ = 0;                           // out of contact, that forceNoise is read on
   mutable double lastForceRatio_ = kNan;                // held-out RMS force error / force noise, at the last gate
   std::map<std::string, std::vector<double>> lastFit_;  // each effect's values in the last round it was fitted
 };
