@@ -554,11 +554,12 @@ class Auditor {
                     std::vector<std::string> keys, const Items& heldBase, bool screen) {
     // The costliest fits first, so that the threads finish together: the most parameters first,
     // those that only rescore the clouds last.
-    auto cost = [&](const std::string& k) {
+    std::map<std::string, int> cost;
+    for (const std::string& k : keys) {
       const Effect& e = effect(k);
-      return e.changesSimulation() ? static_cast<int>(e.params(as).size()) : 0;
-    };
-    std::stable_sort(keys.begin(), keys.end(), [&](const std::string& a, const std::string& b) { return cost(a) > cost(b); });
+      cost[k] = e.changesSimulation() ? static_cast<int>(e.params(as).size()) : 0;
+    }
+    std::stable_sort(keys.begin(), keys.end(), [&](const std::string& a, const std::string& b) { return cost[a] > cost[b]; });
     std::vector<EffectFit> fits;
     std::mutex mutex;
     std::atomic<size_t> next{0};

@@ -39,6 +39,17 @@ study::AuditReport auditPlanted(const Planted& p, const TempDir& dir, const std:
   return study::runAudit(blockScene(), data, o);
 }
 
+// The block with `from` replaced by `to` as the ground truth (beside its poke.csv), audited.
+study::AuditReport auditEditedBlock(const std::string& from, const std::string& to, const Planted& p, const TempDir& dir) {
+  std::string xml = slurp(studyData("block.xml"));
+  const size_t at = xml.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) xml.replace(at, from.size(), to);
+  writeText(dir.path() / "truth.xml", xml);
+  fs::copy_file(studyData("poke.csv"), dir.path() / "poke.csv");
+  return auditPlanted(p, dir, dir / "truth.xml");
+}
+
 std::string summary(const study::AuditReport& r) {
   std::string s = r.verdict + ";";
   for (const auto& rd : r.rounds) {
@@ -113,12 +124,10 @@ TEST_P(PlantedEffect, IsNamedFirstAndFitted) {
 // scene fixes its bottom.
 TEST(Audit, AnElasticFoundationIsNamedAndFitted) {
   TempDir dir;
-  std::string xml = slurp(studyData("block.xml"));
-  const std::string fixed = "<FixedConstraint indices=\"@bottom.indices\"/>";
-  xml.replace(xml.find(fixed), fixed.size(), "<RestShapeSpringsForceField points=\"@bottom.indices\" stiffness=\"20 N/m\"/>");
-  writeText(dir.path() / "truth.xml", xml);
-  fs::copy_file(studyData("poke.csv"), dir.path() / "poke.csv");
-  const study::AuditReport r = auditPlanted({"elasticFoundation", "", true}, dir, dir / "truth.xml");
+  const study::AuditReport r =
+      auditEditedBlock("<FixedConstraint indices=\"@bottom.indices\"/>",
+                       "<RestShapeSpringsForceField points=\"@bottom.indices\" stiffness=\"20 N/m\"/>",
+                       {"elasticFoundation", "", true}, dir);
   ASSERT_FALSE(r.rounds.empty()) << summary(r);
   ASSERT_TRUE(r.rounds.front().confirmed) << summary(r);
   const study::EffectFit& f = r.rounds.front().candidates.front();
@@ -232,13 +241,8 @@ TEST(Audit, AStiffInclusionIsNamedAndPlaced) {
 // friction do here, comes after a modulus change, which is the right correction for this mesh.)
 TEST(Audit, APlantedEffectIsNamedFirstWhenTheTruthRunsOnAFinerMesh) {
   TempDir dir;
-  std::string xml = slurp(studyData("block.xml"));
-  const std::string grid = "n=\"5 3 3\"";
-  ASSERT_NE(xml.find(grid), std::string::npos);
-  xml.replace(xml.find(grid), grid.size(), "n=\"9 5 5\"");
-  writeText(dir.path() / "truth.xml", xml);
-  fs::copy_file(studyData("poke.csv"), dir.path() / "poke.csv");
-  const study::AuditReport r = auditPlanted({"instrumentRadius", "instrument/tip.radius=6.5", true}, dir, dir / "truth.xml");
+  const study::AuditReport r =
+      auditEditedBlock("n=\"5 3 3\"", "n=\"9 5 5\"", {"instrumentRadius", "instrument/tip.radius=6.5", true}, dir);
   ASSERT_FALSE(r.rounds.empty()) << summary(r);
   ASSERT_TRUE(r.rounds.front().confirmed) << summary(r);
   const study::EffectFit& f = r.rounds.front().candidates.front();
