@@ -838,8 +838,8 @@ class Auditor {
       // One parameter, or a coarse fit of the few that rank the effect: a line search along each
       // in turn, from the best point so far; the rest stay where they start until a refinement.
       flat = true;
+      const int share = budget / static_cast<int>(order.size());
       for (size_t j : order) {
-        const int share = budget / static_cast<int>(order.size());
         flat = line(bestS.empty() ? s0 : bestS, bestS.empty() ? base : bestM, seTrain, j, share) && flat;
       }
     } else {
