@@ -103,6 +103,35 @@ double pairedSe(const Items& a, const Items& b) {
   return std::sqrt(variance(dc) / dc.size() + (dg.size() > 1 ? variance(dg) / dg.size() : 0.0));
 }
 
+// The stream ("surface" or "force") that `after` makes materially worse than `before`, or "".
+// A one-sided paired test per stream at level alpha, with no correction for the number of
+// candidates: the check only ever withholds a confirmation, so erring toward it is the safe side.
+// Material: more than 1 % of the stream's mean before, so that a change far below what the report
+// shows cannot veto an effect that the other stream needs.
+std::string worsenedStream(const Items& before, const Items& after, double alpha) {
+  auto worse = [alpha](const std::vector<double>& b, const std::vector<double>& a) {
+    if (a.size() != b.size() || a.size() < 3) return false;
+    std::vector<double> d(a.size());
+    for (size_t i = 0; i < d.size(); ++i) d[i] = a[i] - b[i];
+    const double m = mean(d), se = std::sqrt(variance(d) / static_cast<double>(d.size()));
+    if (!(m > 0.01 * mean(b))) return false;
+    if (!(se > 0)) return true;
+    boost::math::students_t t(static_cast<double>(d.size() - 1));
+    return boost::math::cdf(boost::math::complement(t, m / se)) < alpha;
+  };
+  if (worse(before.c, after.c)) return "surface";
+  if (worse(before.g, after.g)) return "force";
+  return "";
+}
+
+// Candidates best first: fits that failed last, then those that make a stream worse, then by
+// held-out BIC change.
+bool rankedBefore(const EffectFit& a, const EffectFit& b) {
+  if ((a.status == "ok") != (b.status == "ok")) return a.status == "ok";
+  if (a.worsens.empty() != b.worsens.empty()) return a.worsens.empty();
+  return a.deltaBic < b.deltaBic;
+}
+
 // BIC of the items as Gaussian residuals with k parameters: n ln(mean square) + k ln n.
 double bic(const Items& it, int k) {
   double ss = 0;
@@ -285,7 +314,7 @@ class Auditor {
         if (c.status == "ok" && !c.screened) lastFit_[c.effect] = c.values;
       // Holm: the smallest p is compared with alpha / m.
       const EffectFit& best = r.candidates.front();
-      r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable &&
+      r.confirmed = best.status == "ok" && best.deltaBic < 0 && best.identifiable && best.worsens.empty() &&
                     best.pValue < o_.alpha / static_cast<double>(r.candidates.size());
       if (r.candidates.size() > 1) {
         r.runnerUp = r.candidates[1].effect;
@@ -492,10 +521,7 @@ class Auditor {
       refined[k].evaluations += c.evaluations;
       c = std::move(refined[k]);
     }
-    std::stable_sort(r.candidates.begin(), r.candidates.end(), [](const EffectFit& a, const EffectFit& b) {
-      if ((a.status == "ok") != (b.status == "ok")) return a.status == "ok";
-      return a.deltaBic < b.deltaBic;
-    });
+    std::stable_sort(r.candidates.begin(), r.candidates.end(), rankedBefore);
   }
 
   // A residual folder, created (empty: none).
@@ -591,7 +617,8 @@ class Auditor {
           std::lock_guard<std::mutex> lock(mutex);
           say("  " + f.effect + ": " + (f.screened ? std::string("no better near the scene's values") : f.status) + (f.status == "ok" && !f.screened ? ", held-out " + formatNumber(f.heldoutMmBefore) + " -> " +
                                                                            formatNumber(f.heldoutMmAfter) + " mm, p " +
-                                                                           formatNumber(f.pValue)
+                                                                           formatNumber(f.pValue) +
+                                                                           (f.worsens.empty() ? "" : ", worsens the " + f.worsens)
                                                                      : ""));
           fits.push_back(std::move(f));
         } catch (...) {
@@ -606,10 +633,7 @@ class Auditor {
     work();
     for (auto& t : pool) t.join();
     if (failure) std::rethrow_exception(failure);
-    std::sort(fits.begin(), fits.end(), [](const EffectFit& a, const EffectFit& b) {
-      if ((a.status == "ok") != (b.status == "ok")) return a.status == "ok";
-      return a.deltaBic < b.deltaBic;
-    });
+    std::sort(fits.begin(), fits.end(), rankedBefore);
     AuditRound r;
     r.candidates = std::move(fits);
     return r;
@@ -905,6 +929,7 @@ class Auditor {
     f.heldoutMmAfter = held.mmMean();
     f.deltaBic = bic(held, static_cast<int>(d)) - bic(heldBase, 0);
     f.pValue = pairedP(heldBase, held);
+    f.worsens = worsenedStream(heldBase, held, o_.alpha);
     return f;
   }
 
@@ -982,6 +1007,7 @@ Json fitJson(const EffectFit& f) {
           {"delta_bic", num(f.deltaBic)},
           {"p_value", num(f.pValue)},
           {"identifiable", f.identifiable},
+          {"worsens", f.worsens.empty() ? Json(nullptr) : Json(f.worsens)},
           {"screened_out", f.screened}};
 }
 
@@ -1114,7 +1140,7 @@ std::string auditMarkdown(const AuditReport& r, const std::string& scene, const 
       << (rd.confirmed ? "Added `" + rd.candidates.front().effect + "`"
                        : std::string("No candidate passed the test against the nominal scene"))
       << ". Held-out gap " << rd.heldoutBeforeMm << " -> " << rd.heldoutAfterMm << " mm.\n\n"
-      << "| rank | effect | fitted | held-out (mm) | delta BIC | p | identifiable |\n|---|---|---|---|---|---|---|\n";
+      << "| rank | effect | fitted | held-out (mm) | delta BIC | p | identifiable | worsens |\n|---|---|---|---|---|---|---|---|\n";
     for (size_t k = 0; k < rd.candidates.size(); ++k) {
       const EffectFit& f = rd.candidates[k];
       std::ostringstream v;
@@ -1123,7 +1149,7 @@ std::string auditMarkdown(const AuditReport& r, const std::string& scene, const 
       m << "| " << k + 1 << " | `" << f.effect << "` | "
         << (f.status != "ok" ? f.status : f.screened ? std::string("not refitted: no better a step either way") : v.str()) << " | "
         << f.heldoutMmBefore << " -> " << f.heldoutMmAfter << " | " << f.deltaBic << " | " << f.pValue << " | "
-        << (f.identifiable ? "yes" : "no: flat over its range") << " |\n";
+        << (f.identifiable ? "yes" : "no: flat over its range") << " | " << f.worsens << " |\n";
     }
   }
   if (!r.jointValues.empty()) {

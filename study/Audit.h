@@ -72,6 +72,7 @@ struct EffectFit {
   double pValue = 1;                // one-sided paired test that the effect lowers the held-out metric
   bool identifiable = true;         // the training metric changes over the range by more than its noise
   bool screened = false;            // later rounds: no step either way improved it, so it was not fitted
+  std::string worsens;              // "surface" or "force": the held-out stream it makes significantly worse
 };
 
 struct AuditRound {
