@@ -219,6 +219,16 @@ int runSynth(const SynthOptions& o) {
     options.potUpper[j] = psm.joints()[j].upper;
   }
 
+  // The capture's size follows from the log's span before anything is made: refuse what would not
+  // fit a file of kMaxCaptureBytes (packets of up to 128 bytes held in memory meanwhile).
+  constexpr double kMaxCaptureBytes = 4.0 * (1ull << 30);
+  const double span = joints.size() > 0 ? joints.time(joints.size() - 1) - joints.time(0) : 0.0;
+  if (std::isfinite(options.rate) && options.rate > 0 &&
+      (span * options.lineRate / 8 > kMaxCaptureBytes || span * options.rate * 128 > kMaxCaptureBytes))
+    throw Error(SourceLoc{o.joints}, "the log spans " + formatNumber(span) + " s: its capture at " +
+                                         formatNumber(options.rate) + " packets/s and " + formatNumber(options.lineRate) +
+                                         " bit/s would exceed 4 GiB (write a shorter log)");
+
   std::vector<CaptureSample> samples;
   try {
     samples = synthesizeCapture(joints, options);

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,6 +60,54 @@ std::string plyEncoding(const std::string& path) {
     if (line.rfind("end_header", 0) == 0) break;
   }
   return "";
+}
+
+std::vector<std::string> splitWords(const std::string& line);
+
+// PLY headers announce their element counts: each is checked against the file's size before PCL
+// reads it (PCL allocates what the header announces, and a header claiming billions of vertices
+// would exhaust the memory). A binary property takes its type's size, a list at least its count's;
+// an ASCII value at least two bytes (a digit and a separator).
+void checkPlyCounts(const std::string& path, std::uintmax_t fileSize) {
+  std::ifstream in(path, std::ios::binary);
+  std::string raw, encoding, element;
+  unsigned long long count = 0, bytes = 0;
+  int line = 0;
+  auto sizeOf = [](const std::string& type) -> unsigned {
+    if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
+    if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
+    if (type == "double" || type == "float64" || type == "int64" || type == "uint64") return 8;
+    return 4;
+  };
+  auto close = [&]() {
+    if (element.empty()) return;
+    const unsigned long long each = std::max<unsigned long long>(1, bytes);
+    if (count > fileSize / each)
+      throw Error(SourceLoc{path, line}, "the header declares " + std::to_string(count) + " " + element +
+                                             " elements of at least " + std::to_string(each) + " bytes, but the file has " +
+                                             std::to_string(fileSize) + " bytes (truncated, or a corrupt header)");
+  };
+  while (line < 10000 && std::getline(in, raw)) {
+    ++line;
+    const auto w = splitWords(raw);
+    if (w.empty()) continue;
+    if (w[0] == "end_header") break;
+    if (w[0] == "format" && w.size() > 1) encoding = w[1];
+    const bool ascii = encoding == "ascii";
+    if (w[0] == "element" && w.size() == 3) {
+      close();
+      element = w[1];
+      bytes = 0;
+      char* end = nullptr;
+      errno = 0;
+      count = std::strtoull(w[2].c_str(), &end, 10);
+      if (*end != '\0' || errno == ERANGE || w[2][0] == '-')
+        throw Error(SourceLoc{path, line}, "element " + element + " needs a non-negative whole count");
+    } else if (w[0] == "property" && w.size() >= 3 && !element.empty()) {
+      bytes += ascii ? 2 : sizeOf(w[1] == "list" && w.size() >= 5 ? w[2] : w[1]);
+    }
+  }
+  close();
 }
 
 const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& c, const char* name) {
@@ -135,6 +184,7 @@ std::string fieldList(const pcl::PCLPointCloud2& c) {
 // fills in zeros), so the header and an ASCII body are checked first, with line numbers.
 struct PcdLayout {
   int valuesPerPoint = 0;  // sum of COUNT over the fields
+  long long bytesPerPoint = 0;  // sum of SIZE x COUNT
   long long points = 0;
   std::string data;        // ascii, binary or binary_compressed
   int dataLine = 0;        // line number of the DATA line
@@ -209,11 +259,14 @@ PcdLayout checkPcdHeader(const std::string& path, std::istream& in) {
       fail(0, "malformed PCD header: SIZE of field " + fields[i] + " must be 1, 2, 4 or 8");
     if (types[i] != "F" && types[i] != "I" && types[i] != "U")
       fail(0, "malformed PCD header: TYPE of field " + fields[i] + " must be F, I or U");
-    if (!counts.empty() && (!parseInteger(counts[i], count) || count < 1))
-      fail(0, "malformed PCD header: COUNT of field " + fields[i] + " must be a positive whole number");
+    if (!counts.empty() && (!parseInteger(counts[i], count) || count < 1 || count > 1000000))
+      fail(0, "malformed PCD header: COUNT of field " + fields[i] + " must be a whole number from 1 to 1000000");
     layout.valuesPerPoint += static_cast<int>(count);
+    layout.bytesPerPoint += size * count;
   }
   if (width < 0 || !havePoints) fail(0, "malformed PCD header: WIDTH and POINTS are required");
+  if (height > 0 && width > std::numeric_limits<long long>::max() / height)
+    fail(0, "malformed PCD header: WIDTH x HEIGHT (" + std::to_string(width) + " x " + std::to_string(height) + ") is too large");
   if (width * height != layout.points)
     fail(0, "malformed PCD header: WIDTH x HEIGHT (" + std::to_string(width) + " x " + std::to_string(height) +
                 ") differs from POINTS (" + std::to_string(layout.points) + ")");
@@ -254,6 +307,14 @@ void readBlob(const std::string& path, Format format, pcl::PCLPointCloud2& blob,
     const PcdLayout layout = checkPcdHeader(path, in);
     encoding = "pcd " + layout.data;
     if (layout.data == "ascii") checkPcdAsciiBody(path, in, layout);
+    // Binary bodies are checked against the file's size before PCL allocates what the header
+    // announces; LZF expands its input at most about 90 times, so a compressed body is bounded by 100.
+    const long long size = static_cast<long long>(fs::file_size(path));
+    const long long room = layout.data == "binary" ? size : 100 * size;
+    if (layout.data != "ascii" && layout.bytesPerPoint > 0 && layout.points > room / layout.bytesPerPoint)
+      fail(path, "the header declares " + std::to_string(layout.points) + " points of " +
+                     std::to_string(layout.bytesPerPoint) + " bytes, but the file has " + std::to_string(size) +
+                     " bytes (truncated, or a corrupt header)");
     pcl::PCDReader reader;
     int version = 0;
     if (reader.read(path, blob, origin, orientation, version) < 0)
@@ -263,6 +324,7 @@ void readBlob(const std::string& path, Format format, pcl::PCLPointCloud2& blob,
     int version = 0;
     encoding = "ply " + plyEncoding(path);
     if (encoding == "ply ") fail(path, "malformed PLY header: no 'format' line (is this a PLY file?)");
+    checkPlyCounts(path, fs::file_size(path));
     if (reader.read(path, blob, origin, orientation, version) < 0)
       fail(path, "cannot read this " + encoding + " file (malformed header, or truncated or corrupt data)");
   }

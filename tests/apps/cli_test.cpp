@@ -462,12 +462,14 @@ TEST(Cli, OutputsNeverFollowLinksNorReplaceDevices) {
 // Amounts of work derived from options are bounded before the work starts.
 TEST(Cli, WorkFromOptionsIsBoundedBeforeItStarts) {
   TempDir tmp;
+  std::ofstream(tmp.path() / "span.csv") << "t,q1,q2,q3,q4,q5,q6\n0,0,0,0.1,0,0,0\n1e9,0,0,0.1,0,0,0\n";
   struct Case {
     std::vector<std::string> args;
     const char* message;
   };
   const std::vector<Case> cases = {
       {{"velocity", "compare", "--out", tmp / "v", "--step", "1e-12"}, "at most 1e8"},
+      {{"espm", "synth", "--joints", tmp / "span.csv", "--out", tmp / "cap.bin"}, "span.csv: the log spans 1e+09 s"},
       {{"distance", "--factor", "2147483647", "--cloud", tmp / "c.pcd", "--mesh", tmp / "m.msh"}, "not in range 1 to 100"},
       {{"espm", "synth", "--joints", sourcePath("scenes/psm_palpation_joints.csv"), "--out", tmp / "cap.bin", "--line-rate", "1e15"},
        "at most 1e10"},

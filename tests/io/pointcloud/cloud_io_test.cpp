@@ -57,7 +57,7 @@ PointCloud randomCloud(int n, bool normals, unsigned seed) {
 // The values a float32 file holds: each double rounded to float.
 Eigen::Matrix3Xd floatRounded(const Eigen::Matrix3Xd& m) { return m.cast<float>().cast<double>(); }
 
-std::string pcdHeader(const std::string& fields, const std::string& size, const std::string& type, int width, int height,
+std::string pcdHeader(const std::string& fields, const std::string& size, const std::string& type, long long width, long long height,
                       const std::string& data) {
   std::ostringstream h;
   const int nf = static_cast<int>(std::count(fields.begin(), fields.end(), ' ')) + 1;
@@ -212,6 +212,22 @@ TEST(CloudIo, MalformedFilesNameTheFile) {
       {"noz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n",
        "has no z field"},
       {"c.xyz", "1 2 3\n", "expected a .pcd or .ply file"},
+      // Headers announcing billions of points are refused at once against the file's size.
+      {"huge_bin.pcd", pcdHeader("x y z", "4 4 4", "F F F", 4000000000LL, 1, "binary") + std::string(24, '\0'),
+       "declares 4000000000 points of 12 bytes, but the file has"},
+      {"huge_lzf.pcd", pcdHeader("x y z", "4 4 4", "F F F", 4000000000LL, 1, "binary_compressed") + std::string(24, '\0'),
+       "declares 4000000000 points"},
+      {"wide.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4000000000000\nHEIGHT 4000000000000\nPOINTS 1\nDATA binary\n",
+       "is too large"},
+      {"manycount.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 4000000000\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n",
+       "from 1 to 1000000"},
+      {"huge.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n"
+                   "property float z\nend_header\n" + std::string(24, '\0'),
+       ":7: the header declares 4000000000 vertex elements of at least 12 bytes"},
+      {"huge_ascii.ply", "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n"
+                         "property float z\nend_header\n1 2 3\n",
+       "4000000000 vertex elements of at least 6 bytes"},
+      {"negative.ply", "ply\nformat ascii 1.0\nelement vertex -3\nproperty float x\nend_header\n", ":3: element vertex needs"},
   };
   for (const auto& c : cases) {
     const std::string path = tmp / c.name;
