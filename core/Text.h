@@ -26,4 +26,9 @@ std::string formatNumber(double v);
 // are left to the readers, which accept them.
 std::string plainText(std::string_view text);
 
+// A message as a terminal should show it: bytes that are not printable UTF-8 (control characters,
+// binary data) written as \xNN, and any run of more than `longestRun` characters without a blank
+// (an attribute value pasted 100,000 times) cut to its start, its end and how much was left out.
+std::string printable(std::string_view message, size_t longestRun = 160);
+
 }  // namespace viscera

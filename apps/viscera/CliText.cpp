@@ -67,7 +67,7 @@ std::string jsonString(const std::string& s) {
 
 void printNotes(const std::vector<std::string>& notes, size_t limit) {
   for (size_t i = 0; i < notes.size() && i < limit; ++i)
-    std::cerr << (notes[i].size() > 500 ? notes[i].substr(0, 500) + "..." : notes[i]) << "\n";
+    std::cerr << printable(notes[i]) << "\n";
   if (notes.size() > limit)
     std::cerr << "... and " << notes.size() - limit << " more note" << (notes.size() - limit == 1 ? "" : "s") << "\n";
 }

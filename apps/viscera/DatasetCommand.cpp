@@ -198,7 +198,7 @@ namespace {
 int check(const std::string& folder) {
   const study::DatasetReport r = study::checkDataset(folder);
   for (const auto& l : r.lines) std::cout << l << "\n";
-  for (const auto& w : r.warnings) std::cerr << "warning: " << w << "\n";
+  for (const auto& w : r.warnings) std::cerr << "warning: " << printable(w) << "\n";
   for (const auto& p : r.problems) std::cerr << p << "\n";
   if (!r.ok()) {
     std::cerr << folder << ": not a usable dataset (" << r.problems.size() << " problem" << (r.problems.size() == 1 ? "" : "s")

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/Files.h"
+#include "core/Text.h"
 #include "builtin/Builtins.h"
 #include "apps/viscera/AuditCommand.h"
 #include "apps/viscera/CameraCommand.h"
@@ -252,10 +253,10 @@ int main(int argc, char** argv) {
     if (*comps) return cmdComponents(compName);
     if (action) return action();
   } catch (const Error& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << printable(e.what()) << "\n";
     return kExitInvalidInput;
   } catch (const std::exception& e) {
-    std::cerr << "internal error: " << e.what() << "\n";
+    std::cerr << "internal error: " << printable(e.what()) << "\n";
     return kExitInternal;
   }
   return kExitOk;

@@ -442,6 +442,30 @@ TEST(Cli, RepeatedNotesAreCapped) {
   EXPECT_LT(r.err.size(), 5000u);
 }
 
+// A 100 KB attribute value and raw binary bytes are not echoed as they are: the message cuts the
+// one and escapes the other.
+TEST(Cli, MessagesCutLongValuesAndEscapeBinaryBytes) {
+  TempDir tmp;
+  std::string xml = slurp(sourcePath("scenes/beam.xml"));
+  const size_t at = xml.find("youngModulus=\"");
+  ASSERT_NE(at, std::string::npos);
+  const size_t end = xml.find('"', at + 14);
+  std::string binary = xml;
+  xml.replace(at + 14, end - at - 14, std::string(100000, 'x'));
+  binary.replace(at + 14, end - at - 14, "\x01\x02\xFF abc");
+  std::ofstream(tmp.path() / "long.xml") << xml;
+  std::ofstream(tmp.path() / "binary.xml") << binary;
+  const RunResult longValue = runViscera({"check", tmp / "long.xml"});
+  EXPECT_EQ(longValue.rc, 2) << longValue;
+  EXPECT_LT(longValue.err.size(), 1000u);
+  EXPECT_NE(longValue.err.find("youngModulus"), std::string::npos) << longValue;
+  EXPECT_NE(longValue.err.find("characters left out"), std::string::npos) << longValue;
+  const RunResult bytes = runViscera({"check", tmp / "binary.xml"});
+  EXPECT_EQ(bytes.rc, 2) << bytes;
+  EXPECT_NE(bytes.err.find("\\x01\\x02\\xFF abc"), std::string::npos) << bytes;
+  EXPECT_EQ(bytes.err.find('\x01'), std::string::npos);
+}
+
 // An output that is a symbolic link is refused before the run (the link's target is untouched); a
 // device is written through, never replaced by a file.
 TEST(Cli, OutputsNeverFollowLinksNorReplaceDevices) {

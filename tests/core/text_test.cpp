@@ -65,3 +65,22 @@ TEST(Text, FormattingIsShortestAndReadsBackExactly) {
     ASSERT_EQ(x, y) << formatNumber(x);
   }
 }
+
+TEST(Text, PrintableEscapesBinaryAndCutsLongRuns) {
+  using viscera::printable;
+  EXPECT_EQ(printable("plain: 'mm' and µm, tab\tand\nline"), "plain: 'mm' and µm, tab\tand\nline");
+  EXPECT_EQ(printable(std::string("a\x01") + "b\x7F" + "\xFF\xFE" + "c"), "a\\x01b\\x7F\\xFF\\xFEc");
+  EXPECT_EQ(printable("\xC3"), "\\xC3");  // a UTF-8 sequence cut short
+  const std::string value(100000, 'x');
+  const std::string shown = printable("unknown unit '" + value + "' here", 160);
+  EXPECT_LT(shown.size(), 260u);
+  EXPECT_NE(shown.find("characters left out"), std::string::npos);
+  EXPECT_EQ(shown.substr(0, 20), "unknown unit 'xxxxxx");
+  EXPECT_EQ(shown.substr(shown.size() - 10), "xxxx' here");
+  // Multi-byte characters are never split.
+  std::string wide;
+  for (int i = 0; i < 300; ++i) wide += "é";
+  const std::string cut = printable(wide, 101);
+  EXPECT_EQ(printable(cut), cut);
+  EXPECT_EQ(cut.find("\\x"), std::string::npos);
+}
