@@ -1,12 +1,16 @@
 #include "core/Files.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <functional>
 #include <memory>
 #include <thread>
@@ -103,6 +107,64 @@ std::string readInputFile(const std::string& path, const std::string& what, std:
   }
   if (std::ferror(file.get())) throw Error(SourceLoc{path}, "cannot read" + (what.empty() ? std::string() : " " + what) + ": " + std::strerror(errno));
   return bytes;
+}
+
+namespace {
+
+// This process's command line, its arguments separated by blanks.
+std::string ownCommandLine() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  while (!s.empty() && s.back() == '\0') s.pop_back();
+  for (char& c : s)
+    if (c == '\0') c = ' ';
+  return s.size() > 300 ? s.substr(0, 300) + "..." : s;
+}
+
+}  // namespace
+
+FolderLock::FolderLock(const std::string& folder) : path_((std::filesystem::path(folder) / ".viscera.lock").string()) {
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec) throw Error(SourceLoc{folder}, "cannot create the output folder: " + ec.message());
+  // The lock file may be removed by its holder between our open and our lock: lock, then check
+  // that the name still leads to the file locked, else try again.
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) throw Error(SourceLoc{folder}, std::string("cannot lock the output folder: ") + std::strerror(errno));
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      std::string holder;
+      char buffer[512];
+      const ssize_t n = ::pread(fd, buffer, sizeof buffer - 1, 0);
+      if (n > 0) holder.assign(buffer, static_cast<size_t>(n));
+      ::close(fd);
+      while (!holder.empty() && (holder.back() == '\n' || holder.back() == '\0')) holder.pop_back();
+      if (err == EWOULDBLOCK)
+        throw Error(SourceLoc{folder}, "the output folder is in use by another run (" +
+                                           (holder.empty() ? std::string("process unknown") : holder) +
+                                           "); wait for it to end or choose another folder");
+      throw Error(SourceLoc{folder}, std::string("cannot lock the output folder: ") + std::strerror(err));
+    }
+    struct stat held {}, named {};
+    if (::fstat(fd, &held) == 0 && ::stat(path_.c_str(), &named) == 0 && held.st_ino == named.st_ino &&
+        held.st_dev == named.st_dev) {
+      const std::string who = "process " + std::to_string(::getpid()) + ": " + ownCommandLine() + "\n";
+      if (::ftruncate(fd, 0) == 0 && ::pwrite(fd, who.data(), who.size(), 0) < 0) {
+        // The holder's description is a courtesy to the next run; the lock holds without it.
+      }
+      fd_ = fd;
+      return;
+    }
+    ::close(fd);
+  }
+  throw Error(SourceLoc{folder}, "cannot lock the output folder: its lock file keeps changing");
+}
+
+FolderLock::~FolderLock() {
+  if (fd_ < 0) return;
+  ::unlink(path_.c_str());
+  ::close(fd_);
 }
 
 }  // namespace viscera

@@ -22,4 +22,20 @@ std::string readInputFile(const std::string& path, const std::string& what = "",
 // the path on failure.
 void writeFileAtomic(const std::string& path, const std::string& content);
 
+// An output folder held by one run for as long as the object lives: `folder/.viscera.lock`,
+// locked with flock (released by the system when the process ends, however it ends) and removed
+// on destruction. The folder is created if missing. A second run into the same folder throws
+// viscera::Error naming the folder and the process that holds it (its id and command line).
+class FolderLock {
+ public:
+  explicit FolderLock(const std::string& folder);
+  ~FolderLock();
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
 }  // namespace viscera

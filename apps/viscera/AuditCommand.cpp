@@ -121,8 +121,7 @@ int audit(const AuditArgs& a) {
 
   // The scene and the dataset are usable (read above); the residual series are written as the
   // audit replays.
-  fs::create_directories(dir, ec);
-  if (ec) throw Error(SourceLoc{a.out}, "--out: cannot create the folder: " + ec.message());
+  const FolderLock lock(dir.string());
   if (!a.noResiduals) {
     o.residualsBefore = (dir / "residuals" / "before").string();
     o.residualsAfter = (dir / "residuals" / "after").string();

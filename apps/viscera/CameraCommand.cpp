@@ -1,6 +1,7 @@
 // `viscera camera`: runs a scene and writes the frames of its DepthCamera(s). A scene without one
 // gets a camera from the command-line options, added to its description as a DepthCamera element
 // so that the options are validated by the component's own declarations.
+#include "core/Files.h"
 #include "builtin/Builtins.h"
 #include "apps/viscera/CliText.h"
 #include "apps/viscera/CameraCommand.h"
@@ -101,6 +102,7 @@ int runCamera(const CameraOptions& o) {
     for (const auto& n : notes) std::cerr << n << "\n";
     cli::printNotes(scene->notes());
   }
+  const FolderLock lock(o.out);  // the cameras' frames: one run at a time
   RunOptions ro;
   if (o.steps >= 0) ro.steps = o.steps;
   else ro.time = o.time;

@@ -246,8 +246,8 @@ int search(const SearchArgs& a) {
   const fs::path results = dir / "results.csv";
   if (fs::exists(results, ec)) study::readResults(results.string(), params, id.str());
 
-  fs::create_directories(dir, ec);
-  if (ec) throw Error(SourceLoc{a.out}, "--out: cannot create the folder: " + ec.message());
+  // results.csv is appended to as candidates finish: one search at a time.
+  const FolderLock lock(dir.string());
   if (!a.quiet)
     std::cerr << "search: " << params.size() << " parameter" << (params.size() == 1 ? "" : "s") << ", dataset "
               << data.data.frames.size() << " frames" << (data.scoresWrench() ? " and a wrench" : " (no wrench scored)")

@@ -10,6 +10,7 @@
 #include <iostream>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "core/Files.h"
@@ -93,6 +94,9 @@ int cmdRun(const RunCommand& o) {
   for (const auto& [path, option] : outputs)
     if (!path.empty()) cli::requireNotAnInput(path, option, inputs);
   printNotes(*scene, o.quiet);
+  // Exporters and cameras write into --out: one run at a time.
+  std::optional<FolderLock> lock;
+  if (!o.out.empty()) lock.emplace(o.out);
   RunOptions ro;
   if (o.steps >= 0) ro.steps = o.steps;
   else if (o.time >= 0) ro.time = o.time;

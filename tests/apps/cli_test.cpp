@@ -363,6 +363,31 @@ TEST(Cli, InterruptedRunsWriteTheirOutputsAndExitWithTheSignalsCode) {
   }
 }
 
+// Two runs into one --out: the second is refused, naming the process that holds the folder, and
+// leaves the first's frames alone; once the first has ended, the folder is free again.
+TEST(Cli, ASecondRunIntoTheSameOutputFolderIsRefused) {
+  TempDir tmp;
+  const std::string first = shellQuote(VISCERA_BINARY) + " run " + shellQuote(sourcePath("scenes/gel_phantom_coarse.xml")) +
+                            " --time 80 --quiet --out " + shellQuote(tmp / "out");
+  // The second starts once the first holds the folder (its lock file is there) and is given
+  // time to finish before the first is stopped.
+  const std::string second = shellQuote(VISCERA_BINARY) + " run " + shellQuote(sourcePath("scenes/beam.xml")) +
+                             " --steps 2 --quiet --out " + shellQuote(tmp / "out");
+  const std::string script = "(" + first + " 2>/dev/null & p=$!; while [ ! -e " + shellQuote(tmp / "out/.viscera.lock") +
+                             " ]; do sleep 0.05; done; " + second + " 2>" + shellQuote(tmp / "err") + "; echo $? > " +
+                             shellQuote(tmp / "rc") + "; kill -INT $p; wait $p; echo $p > " + shellQuote(tmp / "pid") + ")";
+  ASSERT_EQ(std::system(script.c_str()), 0);
+  EXPECT_EQ(std::stoi(slurp(tmp / "rc")), 2) << slurp(tmp / "err");
+  const std::string err = slurp(tmp / "err");
+  EXPECT_NE(err.find("the output folder is in use by another run (process " + lines(slurp(tmp / "pid")).front()), std::string::npos)
+      << err;
+  EXPECT_NE(err.find("gel_phantom_coarse.xml"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(tmp.path() / "out/beam.pvd"));
+  EXPECT_FALSE(fs::exists(tmp.path() / "out/.viscera.lock"));
+  const RunResult after = runViscera({"run", sourcePath("scenes/beam.xml"), "--steps", "2", "--quiet", "--out", tmp / "out"});
+  EXPECT_EQ(after.rc, 0) << after;
+}
+
 // Special files as inputs are refused at once (/dev/zero would never end, a FIFO would block), and
 // an exporter may not write outside --out.
 TEST(Cli, SpecialFilesAndEscapingOutputsAreRefused) {
