@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -19,6 +20,7 @@
 #include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
+#include "core/Error.h"
 #include "core/Text.h"
 
 namespace viscera {
@@ -185,24 +187,71 @@ std::string summaryJson(const RunResult& r, const std::string& scene) {
   return layoutJson(j, 0) + "\n";
 }
 
+namespace {
+
+// The wrench table's header and rows, one format for the finished table and the streamed one.
+void wrenchHeader(std::ostream& o, const std::vector<std::string>& names) {
+  o << "t";
+  for (const auto& name : names)
+    for (const char* c : {"fx", "fy", "fz", "tx", "ty", "tz", "contacts"}) o << "," << (names.size() > 1 ? name + "." : "") << c;
+  o << "\n";
+}
+
+template <typename SampleOf>
+void wrenchRow(std::ostream& o, double t, size_t instruments, SampleOf&& sample) {
+  o << std::setprecision(9) << t;
+  for (size_t k = 0; k < instruments; ++k) {
+    const WrenchSample w = sample(k);
+    o << "," << w.force.x() << "," << w.force.y() << "," << w.force.z() << "," << w.torque.x() << "," << w.torque.y()
+      << "," << w.torque.z() << "," << w.contacts;
+  }
+  o << "\n";
+}
+
+}  // namespace
+
 std::string wrenchCsv(const RunResult& r) {
   std::ostringstream o;
-  o << std::setprecision(9) << "t";
-  const bool prefix = r.instruments.size() > 1;
-  for (const auto& in : r.instruments)
-    for (const char* c : {"fx", "fy", "fz", "tx", "ty", "tz", "contacts"}) o << "," << (prefix ? in.name + "." : "") << c;
-  o << "\n";
+  std::vector<std::string> names;
+  for (const auto& in : r.instruments) names.push_back(in.name);
+  wrenchHeader(o, names);
   const size_t rows = r.instruments.empty() ? 0 : r.instruments.front().history.size();
-  for (size_t i = 0; i < rows; ++i) {
-    o << r.instruments.front().history[i].t;
-    for (const auto& in : r.instruments) {
-      const WrenchSample& w = in.history[i];
-      o << "," << w.force.x() << "," << w.force.y() << "," << w.force.z() << "," << w.torque.x() << "," << w.torque.y()
-        << "," << w.torque.z() << "," << w.contacts;
-    }
-    o << "\n";
-  }
+  for (size_t i = 0; i < rows; ++i)
+    wrenchRow(o, r.instruments.front().history[i].t, r.instruments.size(),
+              [&](size_t k) { return r.instruments[k].history[i]; });
   return o.str();
+}
+
+WrenchStream::WrenchStream(std::string path) : partial_(std::move(path) + ".partial") {}
+
+WrenchStream::~WrenchStream() {
+  if (file_) {
+    std::fclose(file_);
+    std::remove(partial_.c_str());
+  }
+}
+
+void WrenchStream::begin(const Simulation& sim, int) {
+  for (const RigidObject* b : sim.scene().all<RigidObject>()) bodies_.push_back(b);
+  file_ = std::fopen(partial_.c_str(), "w");
+  if (!file_) throw Error(SourceLoc{partial_}, std::string("cannot write the streamed wrench table: ") + std::strerror(errno));
+  std::ostringstream o;
+  std::vector<std::string> names;
+  for (const RigidObject* b : bodies_) names.push_back(b->name());
+  wrenchHeader(o, names);
+  std::fputs(o.str().c_str(), file_);
+}
+
+void WrenchStream::step(const Simulation& sim) {
+  if (!file_) return;
+  std::ostringstream o;
+  wrenchRow(o, sim.time(), bodies_.size(), [&](size_t k) {
+    const RigidObject& b = *bodies_[k];
+    return WrenchSample{sim.time(), b.force, b.torque, b.contacts};
+  });
+  // One write per row, flushed: a process killed between steps leaves whole rows.
+  std::fputs(o.str().c_str(), file_);
+  std::fflush(file_);
 }
 
 std::string formatDuration(double s) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdio>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -17,6 +18,7 @@
 
 namespace viscera {
 
+class RigidObject;
 class Scene;
 class Simulation;
 struct RunResult;
@@ -123,6 +125,26 @@ std::string summaryJson(const RunResult& r, const std::string& scene);
 // The wrench history as CSV: t, then fx,fy,fz,tx,ty,tz,contacts per instrument (prefixed with
 // the instrument's name when there are several).
 std::string wrenchCsv(const RunResult& r);
+
+// The same table streamed while the run steps, to `path` + ".partial", a row per step, flushed, so
+// that a run killed outright (kill -9, a power cut) leaves every step it finished. The caller writes
+// the finished table with wrenchCsv at `path` as before; the partial file is removed when the
+// stream is destroyed (a run that ends, however it ends, short of the process being killed).
+class WrenchStream : public RunObserver {
+ public:
+  explicit WrenchStream(std::string path);
+  ~WrenchStream() override;
+  WrenchStream(const WrenchStream&) = delete;
+  WrenchStream& operator=(const WrenchStream&) = delete;
+  void begin(const Simulation& sim, int totalSteps) override;
+  void step(const Simulation& sim) override;
+  const std::string& partialPath() const { return partial_; }
+
+ private:
+  std::string partial_;
+  std::FILE* file_ = nullptr;
+  std::vector<const RigidObject*> bodies_;
+};
 
 // A progress line on standard error (steps, simulated time, steps/s, ETA), refreshed at most
 // four times a second; silent when standard error is not a terminal or under CI.

@@ -38,6 +38,7 @@ class Simulation {
   double time() const { return time_; }
   int steps() const { return steps_; }
   Scene& scene() { return scene_; }
+  const Scene& scene() const { return scene_; }
   // Linear iterations of the last step, summed over solvers.
   int lastLinearIterations() const;
   // The collision pipeline, if the scene has one.

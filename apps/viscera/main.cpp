@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <iomanip>
 #include <iostream>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -106,6 +107,15 @@ int cmdRun(const RunCommand& o) {
   // Ctrl-C or SIGTERM: the run stops at a step boundary and its outputs are still written.
   SignalStop signals;
   ro.observers.push_back(&signals);
+  // The wrench rows also go to WRENCH.partial as the run steps, for a run killed outright; not
+  // beside a device or FIFO given as the table.
+  std::optional<WrenchStream> stream;
+  std::error_code ec;
+  const auto kind = o.wrench.empty() ? std::filesystem::file_type::none : std::filesystem::status(o.wrench, ec).type();
+  if (kind == std::filesystem::file_type::regular || kind == std::filesystem::file_type::not_found) {
+    stream.emplace(o.wrench);
+    ro.observers.push_back(&*stream);
+  }
   const RunResult r = run(sim, ro);
 
   if (!o.summary.empty()) writeFileAtomic(o.summary, summaryJson(r, o.scene));

@@ -363,6 +363,30 @@ TEST(Cli, InterruptedRunsWriteTheirOutputsAndExitWithTheSignalsCode) {
   }
 }
 
+// kill -9 gives a run no chance to write anything more: the wrench rows streamed to WRENCH.partial
+// are whole rows, the .pvd lists only complete frames, and the folder is free for the next run.
+TEST(Cli, AKilledRunLeavesItsStreamedWrenchAndCompleteFrames) {
+  TempDir tmp;
+  const std::string cmd = shellQuote(VISCERA_BINARY) + " run " + shellQuote(sourcePath("scenes/gel_phantom_coarse.xml")) +
+                          " --time 80 --quiet --out " + shellQuote(tmp / "out") + " --wrench " + shellQuote(tmp / "w.csv");
+  const std::string script = "(" + cmd + " 2>/dev/null & p=$!; sleep 1.5; kill -KILL $p; wait $p; true)";
+  ASSERT_EQ(std::system(script.c_str()), 0);
+  EXPECT_FALSE(fs::exists(tmp.path() / "w.csv"));
+  const auto rows = lines(slurp(tmp / "w.csv.partial"));
+  ASSERT_GT(rows.size(), 10u);
+  EXPECT_EQ(rows.front(), "t,fx,fy,fz,tx,ty,tz,contacts");
+  for (const auto& row : rows) EXPECT_EQ(std::count(row.begin(), row.end(), ','), 7) << row;
+  for (const auto& f : viscera::io::readPvd(tmp / "out/gel_phantom_coarse.pvd")) {
+    EXPECT_TRUE(fs::exists(f.path)) << f.path;
+    EXPECT_NE(slurp(f.path).find("</VTKFile>"), std::string::npos) << f.path;
+  }
+  const RunResult next = runViscera({"run", sourcePath("scenes/gel_phantom_coarse.xml"), "--steps", "20", "--quiet", "--out",
+                                     tmp / "out", "--wrench", tmp / "w.csv"});
+  EXPECT_EQ(next.rc, 0) << next;
+  EXPECT_EQ(lines(slurp(tmp / "w.csv")).size(), 21u);
+  EXPECT_FALSE(fs::exists(tmp.path() / "w.csv.partial"));
+}
+
 // Two runs into one --out: the second is refused, naming the process that holds the folder, and
 // leaves the first's frames alone; once the first has ended, the folder is free again.
 TEST(Cli, ASecondRunIntoTheSameOutputFolderIsRefused) {
