@@ -140,6 +140,8 @@ class Observer {
   // Called once before the first step (t = start time), after every step, and at the end.
   virtual void begin(double t) {}
   virtual void observe(double t, int stepIndex) = 0;
+  // The step after `stepIndex` (at t) failed: the state no longer holds that step. Told before end.
+  virtual void diverged(double t, int stepIndex) {}
   virtual void end(double t, int stepIndex) {}
 };
 

@@ -49,10 +49,14 @@ std::optional<Diverged> Simulation::step() {
   // (free) motion of every body, then the contact constraints.
   for (Driver* d : drivers_) d->drive(tEnd, dt);
   if (pipeline_) pipeline_->detect();
+  auto failed = [this](std::optional<Diverged> bad) {
+    for (Observer* o : observers_) o->diverged(time_, steps_);
+    return bad;
+  };
   for (OdeSolver* s : solvers_)
-    if (auto bad = s->step(time_, dt, steps_ + 1)) return bad;
+    if (auto bad = s->step(time_, dt, steps_ + 1)) return failed(bad);
   if (pipeline_ && constraints_)
-    if (auto bad = constraints_->solve(*pipeline_, dt, steps_ + 1, tEnd)) return bad;
+    if (auto bad = constraints_->solve(*pipeline_, dt, steps_ + 1, tEnd)) return failed(bad);
   if (pipeline_) pipeline_->finish();
   for (Correction* c : corrections_) c->correct(tEnd, steps_ + 1);
   ++steps_;

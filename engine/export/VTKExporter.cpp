@@ -62,52 +62,77 @@ class VTKExporter : public Component, public Observer {
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
-    if (attrs_.boolean("exportAtBegin")) write(t, 0);
+    if (attrs_.boolean("exportAtBegin")) write(t, 0, current());
+    else keep(t, 0);
   }
   void observe(double t, int step) override {
-    if (every_ > 0 && step % every_ == 0) write(t, step);
+    if (every_ > 0 && step % every_ == 0) write(t, step, current());
+    else keep(t, step);
+  }
+  void diverged(double t, int step) override {
+    // The state now holds the failed step: the last good one is written from its copy.
+    if (lastStep_ != step && kept_.step == step) write(t, step, kept_);
   }
   void end(double t, int step) override {
-    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step);
+    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step, current());
   }
 
  private:
-  void write(double t, int step) {
+  // What a frame is written from: positions (and, for a volume, velocities and forces).
+  struct Frame {
+    int step = -1;
+    Eigen::Matrix3Xd x, v, f;
+  };
+  Frame current() const {
+    Frame fr;
+    fr.x = visual_ ? visual_->x : state_->x;
+    if (!visual_) fr.v = state_->v, fr.f = state_->f;
+    return fr;
+  }
+  // A step not written is kept, so that a divergence on the next one can still export it
+  // (a copy of the node's arrays a step: small beside the step itself).
+  void keep(double, int step) {
+    if (every_ == 1) return;
+    kept_ = current();
+    kept_.step = step;
+  }
+
+  void write(double t, int step, const Frame& fr) {
     char num[32];
     std::snprintf(num, sizeof num, visual_ ? "_%06d.vtp" : "_%06d.vtu", step);
     const std::string file = base_ + num;
-    if (visual_) writeSurface(file);
-    else writeVolume(file);
+    if (visual_) writeSurface(file, fr);
+    else writeVolume(file, fr);
     written_.push_back({t, std::filesystem::path(file).filename().string()});
     lastStep_ = step;
     // The index is rewritten each time so that an interrupted run still opens in ParaView.
     io::writePvd(base_ + ".pvd", written_);
   }
 
-  void writeSurface(const std::string& file) {
+  void writeSurface(const std::string& file, const Frame& fr) {
     const VisualModel& v = *visual_;
     std::vector<io::DataArray> pd;
     if (!fields_.empty()) {
-      const Eigen::Matrix3Xd d = v.x - v.x0;
+      const Eigen::Matrix3Xd d = fr.x - v.x0;
       pd.push_back({"displacement", 3, std::vector<double>(d.data(), d.data() + d.size())});
     }
-    io::writeVtp(file, v.x, v.triangles, false, pd, options_);
+    io::writeVtp(file, fr.x, v.triangles, false, pd, options_);
   }
 
-  void writeVolume(const std::string& file) {
+  void writeVolume(const std::string& file, const Frame& fr) {
     const MechanicalObject& s = *state_;
     std::vector<io::DataArray> pd, cd;
     for (const auto& f : fields_) {
       if (f == "vonMises") {
-        Eigen::VectorXd vm = fem_->vonMises(s.x);
+        Eigen::VectorXd vm = fem_->vonMises(fr.x);
         cd.push_back({"vonMises", 1, std::vector<double>(vm.data(), vm.data() + vm.size())});
         continue;
       }
-      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(s.x - s.x0) : f == "velocity" ? s.v : s.f;
+      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - s.x0) : f == "velocity" ? fr.v : fr.f;
       pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
     }
     static const TetList none;
-    io::writeVtu(file, s.x, fem_ ? fem_->tetrahedra() : none, pd, cd, options_);
+    io::writeVtu(file, fr.x, fem_ ? fem_->tetrahedra() : none, pd, cd, options_);
   }
 
   MechanicalObject* state_ = nullptr;
@@ -119,6 +144,7 @@ class VTKExporter : public Component, public Observer {
   std::vector<std::string> fields_;
   std::string base_;
   std::vector<std::pair<double, std::string>> written_;
+  Frame kept_;
 };
 
 }  // namespace
@@ -130,7 +156,8 @@ void registerVTKExporter(Registry& r) {
   s.doc = "Writes the node's MechanicalObject (with the tetrahedra of its FEM force field) as a .vtu series "
           "and a .pvd index for ParaView. Files are <filename>_<step>.vtu in the output folder (--out). In a node "
           "with an OglModel/VisualModel and no MechanicalObject (a visual child node; `mstate` not set), writes that "
-          "surface instead: <filename>_<step>.vtp with its triangles and the point field displacement.";
+          "surface instead: <filename>_<step>.vtp with its triangles and the point field displacement. A run that "
+          "diverges between export steps still writes its last good step.";
   s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name; beside a visual model, that model's name)"));
   s.add(AttrSpec::integer("exportEveryNumberOfSteps").def("1").atLeast(0).help("write every N steps (0: only at begin/end)"));
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));

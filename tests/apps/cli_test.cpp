@@ -256,6 +256,29 @@ TEST(Cli, DivergingAfterSeveralGoodSteps) {
   EXPECT_GT(checkDivergingRun("diverging_later.xml"), 1);
 }
 
+// Exporting every other step, a run that diverges still exports its last good step, from the copy
+// the exporter kept of it: the series ends where the run did.
+TEST(Cli, DivergingExportsTheLastGoodStepBetweenExportSteps) {
+  TempDir tmp;
+  std::string xml = slurp(badPath("diverging_later.xml"));
+  const std::string from = "<VTKExporter filename=\"beam\"/>";
+  ASSERT_NE(xml.find(from), std::string::npos);
+  xml.replace(xml.find(from), from.size(), "<VTKExporter filename=\"beam\" exportEveryNumberOfSteps=\"2\"/>");
+  std::ofstream(tmp.path() / "scene.xml") << xml;
+  const RunResult r = runViscera({"run", tmp / "scene.xml", "--out", tmp / "out", "--steps", "50"});
+  ASSERT_EQ(r.rc, 3) << r;
+  const int step = std::atoi(r.err.c_str() + r.err.find("diverged at step ") + 17);
+  ASSERT_GT(step, 2) << r;
+  ASSERT_EQ((step - 1) % 2, 1) << "the fixture's last good step is to fall between export steps";
+  const auto frames = viscera::io::readPvd(tmp / "out/beam.pvd");
+  ASSERT_FALSE(frames.empty());
+  char last[32];
+  std::snprintf(last, sizeof last, "beam_%06d.vtu", step - 1);
+  EXPECT_EQ(fs::path(frames.back().path).filename().string(), last);
+  EXPECT_NEAR(frames.back().time, 0.01 * (step - 1), 1e-12);
+  EXPECT_TRUE(viscera::io::readVtu(frames.back().path).points.allFinite());
+}
+
 }  // namespace
 
 TEST(Cli, SetChangesAnAttributeWithUnits) {
