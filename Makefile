@@ -7,7 +7,7 @@ VISCERA   := $(BUILD_DIR)/apps/viscera/viscera
 CCACHE    := $(shell command -v ccache 2>/dev/null)
 CMAKE_FLAGS := -G Ninja -DCMAKE_BUILD_TYPE=Release $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
-.PHONY: all deps configure build demo test bench bench-accuracy fuzz docs clean
+.PHONY: all deps configure build demo test test-asan bench bench-accuracy fuzz docs clean
 
 all: build
 
@@ -40,17 +40,41 @@ bench: build
 bench-accuracy: build
 	$(BUILD_DIR)/tests/viscera_bench --benchmark_filter=Accuracy
 
-# The ESPM stream decoder under libFuzzer with AddressSanitizer and UBSan (clang, installed when
-# missing), for FUZZ_SECONDS; the corpus grows in build-fuzz/corpus. `make test` runs the same
-# target over a seeded corpus without libFuzzer.
-FUZZ_SECONDS ?= 60
-fuzz:
+# AddressSanitizer + UBSan build (clang, installed when missing; libFuzzer's coverage
+# instrumentation included, so that the fuzz targets link against the same objects).
+ASAN_DIR   ?= build-asan
+ASAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer -fsanitize=fuzzer-no-link
+ASAN_ENV   := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+FUZZ_TARGETS := espm scene mesh table cloud
+
+$(ASAN_DIR)/build.ninja:
 	@bash scripts/install-deps.sh clang
-	cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
-	  -DVISCERA_FUZZ=ON -DVISCERA_WITH_PCL=OFF $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-	cmake --build build-fuzz -j $(JOBS) --target fuzz_espm
-	mkdir -p build-fuzz/corpus
-	build-fuzz/tests/fuzz_espm -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 build-fuzz/corpus
+	cmake -S . -B $(ASAN_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ \
+	  -DCMAKE_CXX_FLAGS_RELEASE="-O1 -g1 -DNDEBUG" -DCMAKE_CXX_FLAGS="$(ASAN_FLAGS)" \
+	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DVISCERA_FUZZ=ON \
+	  $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+
+# The whole test suite under AddressSanitizer and UBSan: any report fails the test that made it.
+test-asan: deps $(ASAN_DIR)/build.ninja
+	$(ASAN_ENV) cmake --build $(ASAN_DIR) -j $(JOBS)
+	cd $(ASAN_DIR) && $(ASAN_ENV) ctest --output-on-failure -j $(JOBS)
+
+# Each reader's fuzz target under libFuzzer (ASan + UBSan) for FUZZ_SECONDS, starting from its seed
+# corpus (tests/fuzz/corpus/NAME, the ESPM target from nothing); corpora grow in $(ASAN_DIR)/corpus.
+# `make test` replays the seeds and deterministic mutations of them without libFuzzer.
+FUZZ_SECONDS ?= 60
+fuzz: deps $(ASAN_DIR)/build.ninja
+	$(ASAN_ENV) cmake --build $(ASAN_DIR) -j $(JOBS) --target $(addprefix fuzz_,$(FUZZ_TARGETS))
+	@for t in $(FUZZ_TARGETS); do \
+	  mkdir -p $(ASAN_DIR)/corpus/$$t; \
+	  seeds=tests/fuzz/corpus/$$t; [ -d $$seeds ] || seeds=; \
+	  echo "fuzz_$$t: $(FUZZ_SECONDS) s"; \
+	  VISCERA_FUZZ_SCENE_DIR=$(CURDIR)/tests/data/study $(ASAN_ENV) $(ASAN_DIR)/tests/fuzz_$$t \
+	    -max_total_time=$(FUZZ_SECONDS) -rss_limit_mb=4096 -timeout=20 -print_final_stats=1 \
+	    $(ASAN_DIR)/corpus/$$t $$seeds > $(ASAN_DIR)/fuzz_$$t.log 2>&1; rc=$$?; \
+	  grep -E "^(Done|SUMMARY)" $(ASAN_DIR)/fuzz_$$t.log; \
+	  [ $$rc -eq 0 ] || { tail -40 $(ASAN_DIR)/fuzz_$$t.log; exit 1; }; \
+	done
 
 # Regenerates the component reference from the attribute declarations.
 docs: build
