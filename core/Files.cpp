@@ -121,6 +121,24 @@ std::string ownCommandLine() {
   return s.size() > 300 ? s.substr(0, 300) + "..." : s;
 }
 
+// With the folder held, no other run writes into it: a temporary of writeFileAtomic still there
+// (NAME.tmp.PID.TID) was left by a run killed mid-write, and goes.
+void removeStaleTemporaries(const std::string& folder) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+    const std::string name = e.path().filename().string();
+    const size_t at = name.rfind(".tmp.");
+    if (at == std::string::npos || !e.is_regular_file(ec)) continue;
+    const std::string ids = name.substr(at + 5);
+    const size_t dot = ids.find('.');
+    const auto digits = [](const std::string& s) {
+      return !s.empty() && s.find_first_not_of("0123456789") == std::string::npos;
+    };
+    if (dot != std::string::npos && digits(ids.substr(0, dot)) && digits(ids.substr(dot + 1)))
+      std::filesystem::remove(e.path(), ec);
+  }
+}
+
 }  // namespace
 
 FolderLock::FolderLock(const std::string& folder) : path_((std::filesystem::path(folder) / ".viscera.lock").string()) {
@@ -154,6 +172,7 @@ FolderLock::FolderLock(const std::string& folder) : path_((std::filesystem::path
         // The holder's description is a courtesy to the next run; the lock holds without it.
       }
       fd_ = fd;
+      removeStaleTemporaries(folder);
       return;
     }
     ::close(fd);

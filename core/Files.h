@@ -24,7 +24,8 @@ void writeFileAtomic(const std::string& path, const std::string& content);
 
 // An output folder held by one run for as long as the object lives: `folder/.viscera.lock`,
 // locked with flock (released by the system when the process ends, however it ends) and removed
-// on destruction. The folder is created if missing. A second run into the same folder throws
+// on destruction. The folder is created if missing; temporaries of writeFileAtomic left by a run
+// killed mid-write are removed once it is held. A second run into the same folder throws
 // viscera::Error naming the folder and the process that holds it (its id and command line).
 class FolderLock {
  public:

@@ -88,3 +88,24 @@ TEST(Files, AtomicWriteInReadOnlyFolderKeepsTheOldFile) {
 }
 
 }  // namespace
+
+// One holder at a time: a second lock on the folder names the first holder; the lock file goes
+// with its holder, and temporaries left by a killed writer go when the folder is next held.
+TEST(Files, AnOutputFolderHasOneHolderAndLosesStaleTemporaries) {
+  TempDir tmp;
+  const fs::path out = tmp.path() / "out";
+  fs::create_directories(out);
+  for (const char* name : {"frame_000010.vtu.tmp.4242.4243", "notes.tmp.txt", "x.tmp.12", "kept.vtu"})
+    std::ofstream(out / name) << "part";
+  {
+    const viscera::FolderLock held(out.string());
+    EXPECT_TRUE(fs::exists(out / ".viscera.lock"));
+    EXPECT_FALSE(fs::exists(out / "frame_000010.vtu.tmp.4242.4243"));
+    for (const char* kept : {"notes.tmp.txt", "x.tmp.12", "kept.vtu"}) EXPECT_TRUE(fs::exists(out / kept)) << kept;
+    const std::string e = errorOf([&] { viscera::FolderLock second(out.string()); });
+    EXPECT_NE(e.find("the output folder is in use by another run (process " + std::to_string(::getpid())), std::string::npos) << e;
+  }
+  EXPECT_FALSE(fs::exists(out / ".viscera.lock"));
+  const viscera::FolderLock again((tmp.path() / "new" / "folder").string());  // created when missing
+  EXPECT_TRUE(fs::is_directory(tmp.path() / "new" / "folder"));
+}
