@@ -137,6 +137,8 @@ TEST(Audit, AnElasticFoundationIsNamedAndFitted) {
   const study::EffectFit& f = r.rounds.front().candidates.front();
   EXPECT_EQ(f.effect, "elasticFoundation") << summary(r);
   EXPECT_NEAR(f.values.at(0), 20000, 4000);  // 20 N/m in g/s^2
+  EXPECT_GT(r.rounds.front().margin, 2) << summary(r);
+  EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
   EXPECT_NE(viscera::io::formatScene(r.augmented).find("RestShapeSpringsForceField"), std::string::npos);
 }
 
@@ -161,6 +163,7 @@ TEST(Audit, ARegistrationErrorIsNamedAndCorrected) {
   for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 20), Eigen::Vector3d(40, 0, 20), Eigen::Vector3d(40, 20, 20),
                                   Eigen::Vector3d(0, 20, 0)})
     EXPECT_LT((*r.cloudCorrection * (error * p) - p).norm(), 1.0) << p.transpose();
+  EXPECT_GT(r.rounds.front().margin, 2) << summary(r);
   EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
 }
 
@@ -234,6 +237,7 @@ TEST(Audit, AStiffInclusionIsNamedAndPlaced) {
   EXPECT_NEAR(f.values[0], 20, 3) << summary(r);  // x
   EXPECT_NEAR(f.values[1], 10, 3) << summary(r);  // y
   EXPECT_GT(f.values[4], 1.5) << summary(r);      // stiffer
+  EXPECT_GT(r.rounds.front().margin, 2) << summary(r);
   EXPECT_LE(r.remainingGapMm, 1.5 * r.noiseFloorMm);
   EXPECT_NE(viscera::io::formatScene(r.augmented).find("audit effect 'inclusion'"), std::string::npos);
 }
