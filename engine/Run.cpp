@@ -307,6 +307,8 @@ SignalStop::SignalStop() {
   sigemptyset(&a.sa_mask);
   sigaction(SIGINT, &a, &g_previousInt);
   sigaction(SIGTERM, &a, &g_previousTerm);
+  // Also when the signal was ignored at start (a background job of a script): `kill -INT` is
+  // then how the script asks the run to stop.
 }
 
 SignalStop::~SignalStop() {

@@ -39,6 +39,13 @@ def readable_vtu(path):
 
 def check(out, wrench, summary, sig, rc):
     problems = []
+    if sig != "KILL" and rc == -getattr(signal, "SIG" + sig):
+        # Stopped by the signal's default action before the run installed its handler (while the
+        # program was loading): nothing may have been written.
+        written = [f for f in (os.listdir(out) if os.path.isdir(out) else [])]
+        if written or os.path.exists(summary) or os.path.exists(wrench):
+            problems.append("stopped while loading, yet wrote " + (", ".join(written) or "outputs"))
+        return problems, 0, 0, []
     files = sorted(os.listdir(out))
     temporaries = [f for f in files if ".tmp." in f]
     pvds = [f for f in files if f.endswith(".pvd")]
@@ -82,6 +89,12 @@ def check(out, wrench, summary, sig, rc):
     return problems, len(vtus), rows, temporaries
 
 
+def default_signals():
+    # A script started in the background has SIGINT ignored, and children inherit that.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -90,18 +103,20 @@ def main():
     ap.add_argument("--trials", type=int, default=10)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--latest", type=float, default=30.0, help="latest stop, seconds after the start")
+    ap.add_argument("--signals", default="KILL,INT,TERM", help="signals to try, comma-separated")
     a = ap.parse_args()
     rng = random.Random(a.seed)
     failures = 0
     table = []
-    for sig in ("KILL", "INT", "TERM"):
+    for sig in a.signals.split(","):
         for trial in range(a.trials):
             with tempfile.TemporaryDirectory() as tmp:
                 out, wrench, summary = (os.path.join(tmp, n) for n in ("out", "w.csv", "s.json"))
                 delay = rng.uniform(0.5, a.latest)
                 p = subprocess.Popen([a.viscera, "run", a.scene, "--time", "80", "--quiet", "--out", out,
                                       "--wrench", wrench, "--summary", summary],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                     preexec_fn=default_signals)
                 time.sleep(delay)
                 p.send_signal(getattr(signal, "SIG" + sig))
                 rc = p.wait()

@@ -69,6 +69,9 @@ void printNotes(const Scene& scene, bool quiet) {
 }
 
 int cmdRun(const RunCommand& o) {
+  // Ctrl-C or SIGTERM, from here on (while the scene is built too): the run stops at a step
+  // boundary and its outputs are still written.
+  SignalStop signals;
   // Every output is checked before anything runs: a typo in a folder costs nothing.
   const std::vector<std::pair<std::string, const char*>> outputs = {
       {o.summary, "--summary"}, {o.wrench, "--wrench"}, {o.stateOut, "--state-out"}, {o.saveState, "--save-state"}};
@@ -104,8 +107,6 @@ int cmdRun(const RunCommand& o) {
   ro.recordWrench = !o.wrench.empty();
   ProgressLine progress;
   if (!o.quiet) ro.observers.push_back(&progress);
-  // Ctrl-C or SIGTERM: the run stops at a step boundary and its outputs are still written.
-  SignalStop signals;
   ro.observers.push_back(&signals);
   // The wrench rows also go to WRENCH.partial as the run steps, for a run killed outright; not
   // beside a device or FIFO given as the table.
