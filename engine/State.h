@@ -81,6 +81,7 @@ class StateReader {
   }
   void raw(void* p, size_t n) {
     need(n);
+    if (n == 0) return;  // an empty array's data() may be null, which memcpy may not be given
     std::memcpy(p, in_.data() + pos_, n);
     pos_ += n;
   }

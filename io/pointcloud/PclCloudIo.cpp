@@ -18,6 +18,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <optional>
 #include <string>
@@ -92,7 +93,15 @@ void checkPlyCounts(const std::string& path, std::uintmax_t fileSize) {
     const auto w = splitWords(raw);
     if (w.empty()) continue;
     if (w[0] == "end_header") break;
+    // PCL's parser passes over lines it does not know, and then may take a later element's
+    // properties for the vertices': a header holds these keywords only.
+    static const char* const kKeywords[] = {"ply", "format", "comment", "obj_info", "element", "property"};
+    if (std::none_of(std::begin(kKeywords), std::end(kKeywords), [&](const char* k) { return w[0] == k; }))
+      throw Error(SourceLoc{path, line}, "malformed PLY header: '" + raw.substr(0, 40) + "' is not a header line");
     if (w[0] == "format" && w.size() > 1) encoding = w[1];
+    // PCL reads the vertex element's scalar properties only (it aborts on a list there).
+    if (w[0] == "property" && element == "vertex" && w.size() > 1 && w[1] == "list")
+      throw Error(SourceLoc{path, line}, "a list property in the vertex element is not supported");
     const bool ascii = encoding == "ascii";
     if (w[0] == "element" && w.size() == 3) {
       close();

@@ -228,6 +228,14 @@ TEST(CloudIo, MalformedFilesNameTheFile) {
                          "property float z\nend_header\n1 2 3\n",
        "4000000000 vertex elements of at least 6 bytes"},
       {"negative.ply", "ply\nformat ascii 1.0\nelement vertex -3\nproperty float x\nend_header\n", ":3: element vertex needs"},
+      // PCL aborts on a list property among the vertices', or on one it takes for theirs after a
+      // header line it passed over.
+      {"vertex_list.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                          "property list uchar int vertex_indices\nend_header\n0 0 0 3 0 1 2\n",
+       ":7: a list property in the vertex element is not supported"},
+      {"stray.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                    "\x9b\x93ement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n",
+       ":7: malformed PLY header"},
   };
   for (const auto& c : cases) {
     const std::string path = tmp / c.name;
