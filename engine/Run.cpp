@@ -305,10 +305,10 @@ SignalStop::SignalStop() {
   struct sigaction a {};
   a.sa_handler = onStopSignal;
   sigemptyset(&a.sa_mask);
+  // Installed even over a signal ignored at start (a background job of a script has SIGINT
+  // ignored): `kill -INT` is then how the script asks the run to stop.
   sigaction(SIGINT, &a, &g_previousInt);
   sigaction(SIGTERM, &a, &g_previousTerm);
-  // Also when the signal was ignored at start (a background job of a script): `kill -INT` is
-  // then how the script asks the run to stop.
 }
 
 SignalStop::~SignalStop() {

@@ -138,7 +138,6 @@ class WrenchStream : public RunObserver {
   WrenchStream& operator=(const WrenchStream&) = delete;
   void begin(const Simulation& sim, int totalSteps) override;
   void step(const Simulation& sim) override;
-  const std::string& partialPath() const { return partial_; }
 
  private:
   std::string partial_;

@@ -7,9 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
-#include <iostream>
 #include <filesystem>
 #include <functional>
+#include <iostream>
 #include <memory>
 #include <optional>
 #include <sstream>

@@ -93,7 +93,9 @@ class VTKExporter : public Component, public Observer {
   // (a copy of the node's arrays a step: small beside the step itself).
   void keep(double, int step) {
     if (every_ == 1) return;
-    kept_ = current();
+    // Assigned in place: same sizes every step, so no allocation after the first.
+    kept_.x = visual_ ? visual_->x : state_->x;
+    if (!visual_) kept_.v = state_->v, kept_.f = state_->f;
     kept_.step = step;
   }
 
