@@ -141,6 +141,16 @@ double bic(const Items& it, int k) {
   return n > 0 ? n * std::log(ss / n) + k * std::log(n) : 0.0;
 }
 
+// A top-surface map in millimetres (`mm`: scene length units per mm).
+std::optional<TopResidualMap> inMm(std::optional<TopResidualMap> m, double mm) {
+  if (!m) return m;
+  m->x0 /= mm;
+  m->y0 /= mm;
+  m->cell /= mm;
+  for (double& v : m->sum) v /= mm;
+  return m;
+}
+
 int phaseOf(const std::vector<FrameScore>& frames, size_t k, double peak) {
   const FrameScore& f = frames[k];
   if (!f.contact) return kRest;
@@ -264,6 +274,8 @@ class Auditor {
     rep.noiseFloorSeMm = floorSe / scales_.mm;
     if (!base.ok()) throw Error(SourceLoc{scene.file}, "the nominal scene does not replay the dataset: " + base.reason);
     rep.before = localise(base, scales_, o_.alpha, rep.noiseFloorMm);
+    rep.topBefore = inMm(base.topMap, scales_.mm);
+    topGrid_ = base.topMap;
     if (wrench_) {
       double ss = 0;
       int n = 0;
@@ -349,6 +361,7 @@ class Auditor {
       last = rescore(last, data_, ro);
     }
     rep.after = localise(last, scales_, o_.alpha, rep.noiseFloorMm);
+    rep.topAfter = inMm(last.topMap, scales_.mm);
     rep.remainingGapMm = heldBase.mmMean();
     rep.atNoiseLevel = atNoise(rep.remainingGapMm, last, rep, 1.5);
     rep.verdict = rep.found.empty() ? "no missing effect detected" : "effects found";
@@ -563,6 +576,8 @@ class Auditor {
   ReplayOptions residualOptions(const std::string& residuals) const {
     ReplayOptions ro = o_.replay;
     ro.regions = true;
+    ro.topMap = true;
+    ro.topMapGrid = topGrid_;  // after the nominal replay, its grid: before and after side by side
     ro.cloudCorrection = correction_;
     ro.residualFolder = residuals;
     const int frames = static_cast<int>(data_.data.frames.size());
@@ -938,6 +953,7 @@ class Auditor {
   AuditProgress* progress_;
   std::vector<std::unique_ptr<Effect>> library_ = effectLibrary();
   Scales scales_;
+  std::optional<TopResidualMap> topGrid_;  // the nominal replay's top-surface map
   bool wrench_ = false;
   double split_ = 0;
   std::vector<std::string> notes_;

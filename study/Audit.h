@@ -92,6 +92,7 @@ struct AuditReport {
   std::vector<AuditRound> rounds;
   std::vector<double> jointValues;  // with two effects or more: their parameters refitted together, in round order
   Localisation before, after;
+  std::optional<TopResidualMap> topBefore, topAfter;  // the top surface's residual map (mm), nominal and augmented
   double remainingGapMm = 0;          // held-out mean per-frame RMS distance at the end
   bool atNoiseLevel = false;
   SceneDesc augmented;

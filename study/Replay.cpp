@@ -27,6 +27,36 @@ namespace viscera::study {
 
 namespace fs = std::filesystem;
 
+TopResidualMap TopResidualMap::over(double xmin, double xmax, double ymin, double ymax, int cells) {
+  TopResidualMap m;
+  m.x0 = xmin;
+  m.y0 = ymin;
+  const double extent = std::max(xmax - xmin, ymax - ymin);
+  m.cell = extent > 0 ? extent / cells : 1.0;
+  m.nx = std::max(1, static_cast<int>(std::ceil((xmax - xmin) / m.cell)));
+  m.ny = std::max(1, static_cast<int>(std::ceil((ymax - ymin) / m.cell)));
+  return m.emptyLike();
+}
+
+TopResidualMap TopResidualMap::emptyLike() const {
+  TopResidualMap m = *this;
+  m.sum.assign(static_cast<size_t>(nx) * ny, 0.0);
+  m.count.assign(static_cast<size_t>(nx) * ny, 0);
+  return m;
+}
+
+void TopResidualMap::add(double x, double y, double signedDistance) {
+  const int i = static_cast<int>(std::floor((x - x0) / cell)), j = static_cast<int>(std::floor((y - y0) / cell));
+  if (i < 0 || j < 0 || i >= nx || j >= ny) return;
+  sum[static_cast<size_t>(j) * nx + i] += signedDistance;
+  count[static_cast<size_t>(j) * nx + i] += 1;
+}
+
+double TopResidualMap::mean(int i, int j) const {
+  const size_t k = static_cast<size_t>(j) * nx + i;
+  return count[k] > 0 ? sum[k] / count[k] : std::numeric_limits<double>::quiet_NaN();
+}
+
 namespace {
 
 const char* const kDriverTag = "TrajectoryDriver";
@@ -93,11 +123,22 @@ class FrameMeasure {
     distance_->measure(*cloud, result_);
     fs.points = result_.stats.count;
     if (fs.points > 0) fs.value = result_.stats.rms;
-    if (options_.regions) fs.regions = regions(x, *cloud, tip, tipRadius);
+    if (options_.regions) {
+      if (options_.topMap && !map_) {
+        if (options_.topMapGrid) {
+          map_ = options_.topMapGrid->emptyLike();
+        } else {
+          const Eigen::Vector3d lo = x.rowwise().minCoeff(), hi = x.rowwise().maxCoeff();
+          map_ = TopResidualMap::over(lo.x(), hi.x(), lo.y(), hi.y());
+        }
+      }
+      fs.regions = regions(x, *cloud, tip, tipRadius);
+    }
     if (!options_.residualFolder.empty() && measured_++ % std::max(1, options_.residualStride) == 0)
       writeResiduals(k, fs.time, x, *cloud);
     return cloud;
   }
+  const std::optional<TopResidualMap>& topMap() const { return map_; }
 
  private:
   void writeResiduals(size_t k, double t, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud) {
@@ -114,7 +155,7 @@ class FrameMeasure {
 
   // The frame's residuals per region (result_ holds its distances).
   std::vector<RegionResiduals> regions(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& cloud, const Eigen::Vector3d& tip,
-                                       double tipRadius) const {
+                                       double tipRadius) {
     std::vector<RegionResiduals> out(kRegionCount);
     const auto& tris = distance_->triangles();
     for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
@@ -128,6 +169,7 @@ class FrameMeasure {
       const Eigen::Vector3d closest = cloud.col(i) + result_.residual.col(i);
       const bool near = tipRadius > 0 && (closest - tip).norm() < 3 * tipRadius;
       const double d = result_.distance[static_cast<size_t>(i)], sd = result_.signedDistance[static_cast<size_t>(i)];
+      if (face == kTop && map_) map_->add(closest.x(), closest.y(), sd);
       for (int r : {face, static_cast<int>(near ? kNearInstrument : kAwayFromInstrument)}) {
         out[r].count += 1;
         out[r].sumSquared += d * d;
@@ -143,6 +185,7 @@ class FrameMeasure {
   obs::DistanceResult result_;
   Eigen::Matrix3Xd corrected_;
   size_t measured_ = 0;  // frames measured (for residualStride)
+  std::optional<TopResidualMap> map_;
   std::vector<std::pair<double, std::string>> cloudFiles_, surfaceFiles_;
 };
 
@@ -222,6 +265,7 @@ class Scorer : public RunObserver {
 
   std::vector<FrameScore> frames, samples;
   std::shared_ptr<RecordedSurfaces> recorded_;
+  const std::optional<TopResidualMap>& topMap() const { return measure_->topMap(); }
 
  private:
   // Measurement times on the scene's clock.
@@ -437,6 +481,7 @@ ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const Rep
   }
 
   s.surfaces = std::move(scorer.recorded_);
+  s.topMap = scorer.topMap();
   summarise(s, data, o.score.lengthScale);
   return s;
 }
@@ -460,6 +505,7 @@ ReplayScore rescore(const ReplayScore& recorded, const PreparedDataset& data, co
     measure.measure(fs, rec.frame[i], rec.x[i], rec.tip[i], rec.tipRadius);
     s.frames.push_back(std::move(fs));
   }
+  s.topMap = measure.topMap();
   summarise(s, data, rec.lengthScale);
   return s;
 }

@@ -51,6 +51,21 @@ PreparedDataset prepareDataset(const std::string& folder, const ScoreOptions& op
 // the scene has no TrajectoryDriver or several.
 SceneDesc replayDescription(SceneDesc scene, const Dataset& data);
 
+// The mean signed residual (along the outward normal, + outside the tissue) of the cloud points
+// whose closest surface point lies on the tissue's top (+z facing), on an x-y grid: where on the
+// top the model stands off the measurement, over all the frames scored.
+struct TopResidualMap {
+  double x0 = 0, y0 = 0, cell = 1;  // scene units: the grid's corner and cell size
+  int nx = 0, ny = 0;
+  std::vector<double> sum;          // of the signed distances, per cell (x fastest)
+  std::vector<int> count;
+  // A grid of about `cells` cells along the longer side over [xmin, xmax] x [ymin, ymax].
+  static TopResidualMap over(double xmin, double xmax, double ymin, double ymax, int cells = 48);
+  TopResidualMap emptyLike() const;  // the same grid, nothing added
+  void add(double x, double y, double signedDistance);
+  double mean(int i, int j) const;  // NaN where no point fell
+};
+
 struct ReplayOptions {
   ScoreOptions score;      // lengthScale 0 is resolved against the scene's units
   int threads = 1;         // worker threads of the run (0: all cores)
@@ -69,6 +84,10 @@ struct ReplayOptions {
   int residualStride = 1;  // residuals of every residualStride-th scored frame only
   // Keep the simulated surface at every scored frame (ReplayScore::surfaces), for rescore().
   bool keepSurfaces = false;
+  // Accumulate ReplayScore::topMap (with `regions`): on this grid when given, else on one over the
+  // surface's extent at the first frame scored.
+  bool topMap = false;
+  std::optional<TopResidualMap> topMapGrid;
 };
 
 // Where on the tissue a cloud point lies: by the outward normal of its closest triangle (the
@@ -119,6 +138,7 @@ struct ReplayScore {
   int steps = 0;
   double wallSeconds = 0;
   std::shared_ptr<const RecordedSurfaces> surfaces;  // with ReplayOptions::keepSurfaces
+  std::optional<TopResidualMap> topMap;               // with ReplayOptions::topMap
   bool ok() const { return status == Status::Ok; }
 };
 const char* statusName(ReplayScore::Status s);  // "ok", "diverged", "timeout"

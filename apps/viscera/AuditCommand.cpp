@@ -58,6 +58,53 @@ std::string residualTable(const study::AuditReport& r) {
   return t.str();
 }
 
+// top_residual.csv: the top surface's mean signed residual per grid cell (centre x, y in mm),
+// nominal and augmented; NaN where no cloud point fell. Empty without a top surface in view.
+std::string topResidualTable(const study::AuditReport& r) {
+  if (!r.topBefore || !r.topAfter || r.topBefore->nx != r.topAfter->nx || r.topBefore->ny != r.topAfter->ny) return "";
+  const study::TopResidualMap& b = *r.topBefore;
+  std::ostringstream t;
+  t << "x_mm,y_mm,before_mm,after_mm\n";
+  for (int j = 0; j < b.ny; ++j)
+    for (int i = 0; i < b.nx; ++i)
+      t << formatNumber(b.x0 + (i + 0.5) * b.cell) << "," << formatNumber(b.y0 + (j + 0.5) * b.cell) << ","
+        << formatNumber(b.mean(i, j)) << "," << formatNumber(r.topAfter->mean(i, j)) << "\n";
+  return t.str();
+}
+
+// top_residual.gp: the two maps side by side on one symmetric colour scale (blue: the cloud lies
+// inside the simulated surface, red: outside).
+std::string topResidualScript(const study::AuditReport& r) {
+  double most = 0;
+  for (const auto* m : {&*r.topBefore, &*r.topAfter})
+    for (int j = 0; j < m->ny; ++j)
+      for (int i = 0; i < m->nx; ++i)
+        if (std::isfinite(m->mean(i, j))) most = std::max(most, std::abs(m->mean(i, j)));
+  if (!(most > 0)) most = 1;
+  std::ostringstream g;
+  g << "# The top surface's residual before and after, written by viscera audit.\n"
+    << "# Re-plot with: gnuplot top_residual.gp (writes top_residual.png next to top_residual.csv)\n"
+    << "if (!exists(\"outfile\")) outfile = \"top_residual.png\"\n"
+    << "set terminal pngcairo size 1200,520 font \",10\"\n"
+    << "set output outfile\n"
+    << "set datafile separator \",\"\n"
+    << "set datafile missing \"nan\"\n"
+    << "set multiplot layout 1,2 title \"Mean signed residual on the top surface, all frames (mm; + the cloud lies outside "
+       "the model)\"\n"
+    << "set size ratio -1\n"
+    << "set palette defined (-1 \"blue\", 0 \"white\", 1 \"red\")\n"
+    << "set cbrange [" << -most << ":" << most << "]\n"
+    << "set xlabel \"x (mm)\"\nset ylabel \"y (mm)\"\n"
+    << "set title \"nominal scene\"\n"
+    << "set style fill solid noborder\n"
+    << "h = " << r.topBefore->cell / 2 << "  # half a cell (mm)\n"
+    << "plot \"top_residual.csv\" skip 1 using 1:2:(h):(h):3 with boxxyerror palette notitle\n"
+    << "set title \"augmented scene\"\n"
+    << "plot \"top_residual.csv\" skip 1 using 1:2:(h):(h):4 with boxxyerror palette notitle\n"
+    << "unset multiplot\n";
+  return g.str();
+}
+
 // audit.gp: the residual over time before and after, with the noise floor and the training /
 // held-out split; below it the first round's ranking (held-out BIC change per candidate).
 std::string plotScript(const study::AuditReport& r) {
@@ -153,13 +200,21 @@ int audit(const AuditArgs& a) {
   writeFileAtomic((dir / "residual.csv").string(), residualTable(r));
   writeFileAtomic((dir / "report.json").string(),
                   study::auditJson(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
-  writeFileAtomic((dir / "report.md").string(),
-                  study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string()));
-  const std::string md = study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string());
+  const std::string topTable = topResidualTable(r);
+  if (!topTable.empty()) writeFileAtomic((dir / "top_residual.csv").string(), topTable);
+  std::string md = study::auditMarkdown(r, fs::absolute(a.scene).string(), fs::absolute(a.data).string(), augmentedPath.string());
+  if (!a.noPlot && !topTable.empty())
+    md += "\n## Residual on the top surface\n\nThe mean signed residual of the cloud points on the top surface over all "
+          "frames, nominal and augmented scene (`top_residual.csv`).\n\n![top surface residual](top_residual.png)\n";
+  writeFileAtomic((dir / "report.md").string(), md);
   writeFileAtomic((dir / "report.html").string(), markdownPage("Model audit", md, a.noPlot ? "" : "audit.png"));
   if (!a.noPlot) {  // last: a missing gnuplot costs the picture only
     writeFileAtomic((dir / "audit.gp").string(), plotScript(r));
     plotWithGnuplot(dir, "audit.gp", "audit.png");
+    if (!topTable.empty()) {
+      writeFileAtomic((dir / "top_residual.gp").string(), topResidualScript(r));
+      plotWithGnuplot(dir, "top_residual.gp", "top_residual.png");
+    }
   }
   std::cout << r.verdict;
   if (!r.found.empty()) {
@@ -168,7 +223,8 @@ int audit(const AuditArgs& a) {
   }
   std::cout << " (noise floor " << r.noiseFloorMm << " mm, remaining gap " << r.remainingGapMm << " mm)\n";
   std::cerr << "wrote " << (dir / "report.md").string() << ", report.html, report.json, residual.csv"
-            << (a.noPlot ? "" : ", audit.png") << " and " << augmentedPath.string() << "\n";
+            << (topTable.empty() ? "" : ", top_residual.csv") << (a.noPlot ? "" : ", audit.png")
+            << (a.noPlot || topTable.empty() ? "" : ", top_residual.png") << " and " << augmentedPath.string() << "\n";
   return kExitOk;
 }
 

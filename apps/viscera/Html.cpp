@@ -115,6 +115,13 @@ std::string markdownPage(const std::string& title, const std::string& markdown, 
         imageShown = true;
       }
       h << "<h" << level << ">" << inlineMarkup(line.substr(level + 1)) << "</h" << level << ">\n";
+    } else if (line.rfind("![", 0) == 0 && line.find("](") != std::string::npos && line.back() == ')') {
+      // An image on a line of its own: ![alt](file).
+      flushPara();
+      flushList();
+      const size_t mid = line.find("](");
+      h << "<p><img src=\"" << escape(line.substr(mid + 2, line.size() - mid - 3)) << "\" alt=\""
+        << escape(line.substr(2, mid - 2)) << "\"></p>\n";
     } else if (line.rfind("- ", 0) == 0) {
       flushPara();
       if (!list) h << "<ul>\n";
