@@ -234,7 +234,7 @@ TEST(CloudIo, MalformedFilesNameTheFile) {
                           "property list uchar int vertex_indices\nend_header\n0 0 0 3 0 1 2\n",
        ":7: a list property in the vertex element is not supported"},
       {"stray.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
-                    "\x9b\x93ement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n",
+                    "\x9b\x93" "ement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n",
        ":7: malformed PLY header"},
   };
   for (const auto& c : cases) {
