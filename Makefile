@@ -45,7 +45,7 @@ bench-accuracy: build
 ASAN_DIR   ?= build-asan
 ASAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer -fsanitize=fuzzer-no-link
 ASAN_ENV   := ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-              LSAN_OPTIONS=suppressions=$(CURDIR)/tests/asan/lsan.supp
+              LSAN_OPTIONS=suppressions=$(CURDIR)/tests/asan/lsan.supp:print_suppressions=0
 FUZZ_TARGETS := espm scene mesh table cloud
 
 $(ASAN_DIR)/build.ninja:
