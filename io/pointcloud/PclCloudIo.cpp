@@ -63,13 +63,25 @@ std::string plyEncoding(const std::string& path) {
   return "";
 }
 
-std::vector<std::string> splitWords(const std::string& line);
+std::vector<std::string> splitWords(const std::string& line) {
+  std::vector<std::string> words;
+  std::string word;
+  for (char c : line) {
+    if (c == ' ' || c == '\t' || c == '\r') {
+      if (!word.empty()) words.push_back(word), word.clear();
+    } else {
+      word += c;
+    }
+  }
+  if (!word.empty()) words.push_back(word);
+  return words;
+}
 
-// PLY headers announce their element counts: each is checked against the file's size before PCL
-// reads it (PCL allocates what the header announces, and a header claiming billions of vertices
-// would exhaust the memory). A binary property takes its type's size, a list at least its count's;
-// an ASCII value at least two bytes (a digit and a separator).
-void checkPlyCounts(const std::string& path, std::uintmax_t fileSize) {
+// A PLY header checked before PCL reads the file: only header keywords, no list property among
+// the vertices', and every element count against the file's size (PCL allocates what the header
+// announces: a header claiming billions of vertices would exhaust the memory). A binary property
+// takes its type's size, a list at least its count's; an ASCII value at least two bytes.
+void checkPlyHeader(const std::string& path, std::uintmax_t fileSize) {
   std::ifstream in(path, std::ios::binary);
   std::string raw, encoding, element;
   unsigned long long count = 0, bytes = 0;
@@ -199,20 +211,6 @@ struct PcdLayout {
   int dataLine = 0;        // line number of the DATA line
 };
 
-std::vector<std::string> splitWords(const std::string& line) {
-  std::vector<std::string> words;
-  std::string word;
-  for (char c : line) {
-    if (c == ' ' || c == '\t' || c == '\r') {
-      if (!word.empty()) words.push_back(word), word.clear();
-    } else {
-      word += c;
-    }
-  }
-  if (!word.empty()) words.push_back(word);
-  return words;
-}
-
 bool parseInteger(const std::string& text, long long& value) {
   if (text.empty()) return false;
   char* end = nullptr;
@@ -333,7 +331,7 @@ void readBlob(const std::string& path, Format format, pcl::PCLPointCloud2& blob,
     int version = 0;
     encoding = "ply " + plyEncoding(path);
     if (encoding == "ply ") fail(path, "malformed PLY header: no 'format' line (is this a PLY file?)");
-    checkPlyCounts(path, fs::file_size(path));
+    checkPlyHeader(path, fs::file_size(path));
     if (reader.read(path, blob, origin, orientation, version) < 0)
       fail(path, "cannot read this " + encoding + " file (malformed header, or truncated or corrupt data)");
   }
