@@ -52,7 +52,7 @@ $(ASAN_DIR)/build.ninja:
 	@bash scripts/install-deps.sh clang
 	cmake -S . -B $(ASAN_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_COMPILER=clang++ \
 	  -DCMAKE_CXX_FLAGS_RELEASE="-O1 -g1 -DNDEBUG" -DCMAKE_CXX_FLAGS="$(ASAN_FLAGS)" \
-	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DVISCERA_FUZZ=ON \
+	  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DVISCERA_FUZZ=ON -DVISCERA_TEST_TIMEOUT=5400 \
 	  $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
 # The whole test suite under AddressSanitizer and UBSan: any report fails the test that made it.

@@ -13,6 +13,7 @@ void registerTetrahedronFEM(Registry&);
 void registerVTKExporter(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
+void registerEulerExplicit(Registry&);
 void registerStaticSolver(Registry&);
 void registerDrivers(Registry&);
 void registerCollision(Registry&);
@@ -32,6 +33,7 @@ void registerBuiltins(Registry& r) {
   registerVTKExporter(r);
   registerLinearSolvers(r);
   registerEulerImplicit(r);
+  registerEulerExplicit(r);
   registerStaticSolver(r);
   registerDrivers(r);
   registerCollision(r);
@@ -43,7 +45,10 @@ void registerBuiltins(Registry& r) {
   const char* drawing = "drawing only";
   for (const char* t : {"VisualStyle", "OglSceneFrame", "LightManager", "DirectionalLight",
                         "SpotLight", "InteractiveCamera", "Camera", "BackgroundSetting", "DefaultVisualManagerLoop",
-                        "VisualGrid", "LineAxis"})
+                        "VisualGrid", "LineAxis", "PositionalLight", "OglShader", "OglShadowShader", "OglTexture",
+                        "OglShaderDefineMacro", "OglFloatVariable", "OglLabel", "OglViewport", "OglGrid",
+                        "RecordedCamera", "ViewerSetting", "Visual3DText", "ConstraintAttachButtonSetting",
+                        "AttachBodyButtonSetting", "MouseButtonSetting"})
     r.addIgnored(t, drawing);
   r.addIgnored("RequiredPlugin", "plugins are built in");
   r.addIgnored("DefaultAnimationLoop", "the step loop is built in");
@@ -52,6 +57,12 @@ void registerBuiltins(Registry& r) {
   r.addIgnored("TriangleSetTopologyModifier", "topology changes are not needed");
   r.addIgnored("TriangleSetGeometryAlgorithms", "geometry helpers are built in");
   r.addIgnored("InfoComponent", "no effect");
+  for (const char* t : {"EdgeSetTopologyModifier", "QuadSetTopologyModifier", "HexahedronSetTopologyModifier",
+                        "PointSetTopologyModifier"})
+    r.addIgnored(t, "topology changes are not needed");
+  for (const char* t : {"EdgeSetGeometryAlgorithms", "QuadSetGeometryAlgorithms", "HexahedronSetGeometryAlgorithms",
+                        "PointSetGeometryAlgorithms"})
+    r.addIgnored(t, "geometry helpers are built in");
 }
 
 const Registry& builtinRegistry() {

@@ -1,6 +1,7 @@
 #include "core/Attributes.h"
 #include "core/Text.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -78,6 +79,34 @@ void splitNumbersAndUnit(const std::string& text, std::vector<double>& nums, std
   for (; i < toks.size(); ++i) unit += (unit.empty() ? "" : " ") + toks[i];
 }
 
+// SOFA's index ranges in integer lists: "0-8" is 0 1 2 ... 8. A list may expand to at most
+// kMaxRangeValues values (a typo such as "0-99999999999" is refused, not allocated).
+constexpr long long kMaxRangeValues = 10'000'000;
+
+std::string expandIndexRanges(const std::string& text) {
+  std::istringstream in(text);
+  std::string out, t;
+  long long total = 0;
+  while (in >> t) {
+    const size_t dash = t.find('-', 1);
+    long long a = 0, b = 0;
+    if (dash != std::string::npos && std::isdigit(static_cast<unsigned char>(t[0])) &&
+        parseInteger(std::string_view(t).substr(0, dash), a) && parseInteger(std::string_view(t).substr(dash + 1), b) &&
+        std::isdigit(static_cast<unsigned char>(t[dash + 1]))) {
+      if (b < a) throw std::invalid_argument("range '" + t + "' ends before it starts");
+      total += b - a + 1;
+      if (total > kMaxRangeValues)
+        throw std::invalid_argument("ranges give more than " + std::to_string(kMaxRangeValues) + " values");
+      for (long long i = a; i <= b; ++i) out += std::to_string(i) + " ";
+      continue;
+    }
+    if (++total > kMaxRangeValues)
+      throw std::invalid_argument("more than " + std::to_string(kMaxRangeValues) + " values");
+    out += t + " ";
+  }
+  return out;
+}
+
 }  // namespace
 
 void checkAttrNumbers(const AttrSpec& spec, const std::vector<double>& nums) {
@@ -120,7 +149,10 @@ void parseAttrText(const AttrSpec& spec, const std::string& text, const UnitSyst
     default: break;
   }
   std::string unit;
-  splitNumbersAndUnit(text, out.nums, unit);
+  if (spec.kind == AttrKind::Ints && text.find('-', 1) != std::string::npos)
+    splitNumbersAndUnit(expandIndexRanges(text), out.nums, unit);
+  else
+    splitNumbersAndUnit(text, out.nums, unit);
   if (!unit.empty()) {
     if (!spec.hasUnit) throw std::invalid_argument("takes no unit, got '" + unit + "'");
     const Unit u = parseUnit(unit);

@@ -62,11 +62,11 @@ const ComponentSpec& Registry::nodeSpec() {
     s.category = "scene";
     s.doc = "A node of the scene graph. The root node carries the time step, gravity and unit system.";
     s.add(AttrSpec::string("name").def("").help("name of the node, used in links (@node/component)"));
-    s.add(AttrSpec::real("dt").def("0.01").above(0).unit(Dimension::time()).help("time step (root only)"));
-    s.add(AttrSpec::reals("gravity", 3).def("0 -9.81 0").unit(Dimension::acceleration()).help("gravity vector (root only)"));
+    s.add(AttrSpec::real("dt").def("0.01").above(0).unit(Dimension::time()).help("time step (root only; a sub-node's is noted and ignored, as in SOFA)"));
+    s.add(AttrSpec::reals("gravity", 3).def("0 -9.81 0").unit(Dimension::acceleration()).help("gravity vector (root only; a sub-node's is noted and ignored, as in SOFA)"));
     s.add(AttrSpec::string("units").def("m kg s").help("unit system 'length mass time' of plain numbers in the scene, e.g. \"mm g s\" (root only)"));
     s.add(AttrSpec::boolean("activated").def("true").help("inactive nodes are skipped"));
-    s.add(AttrSpec::real("time").def("0").atLeast(0).unit(Dimension::time()).help("start time (root only)"));
+    s.add(AttrSpec::real("time").def("0").atLeast(0).unit(Dimension::time()).help("start time (root only; a sub-node's is noted and ignored)"));
     s.add(AttrSpec::boolean("animate").def("false").help("accepted for SOFA compatibility; ignored"));
     return s;
   }();

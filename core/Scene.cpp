@@ -1,7 +1,9 @@
 #include "core/Scene.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
+#include <sstream>
 #include <stdexcept>
 
 namespace viscera {
@@ -12,6 +14,72 @@ namespace {
 // they check at init that it is one they support.
 bool isTemplateOk(const std::string& t) {
   return t == "Vec3d" || t == "Vec3" || t == "Vec3f" || t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f";
+}
+
+// SOFA's legacy attribute names that SOFA still reads as parts of one vector attribute: the
+// placement (dx dy dz, rx ry rz) and the grid's per-axis counts and bounds. A part left out keeps
+// the vector's default (or the value given to the vector itself, which the parts then override).
+struct LegacyParts {
+  const char* target;
+  const char* parts[3];
+};
+constexpr LegacyParts kLegacyParts[] = {
+    {"translation", {"dx", "dy", "dz"}}, {"rotation", {"rx", "ry", "rz"}}, {"n", {"nx", "ny", "nz"}},
+    {"min", {"xmin", "ymin", "zmin"}},   {"max", {"xmax", "ymax", "zmax"}},
+};
+
+// The element's attributes with SOFA's legacy names folded into the attributes `spec` declares:
+// the parts above, and `scale` (one factor for all axes, or three) into `scale3d`.
+std::vector<AttrDesc> withLegacyNames(const ElementDesc& el, const ComponentSpec& spec) {
+  std::vector<AttrDesc> out = el.attrs;
+  auto given = [&](const std::string& name) -> AttrDesc* {
+    for (auto& a : out)
+      if (a.name == name) return &a;
+    return nullptr;
+  };
+  auto tokens = [](const std::string& text) {
+    std::vector<std::string> t;
+    std::istringstream in(text);
+    for (std::string w; in >> w;) t.push_back(w);
+    return t;
+  };
+  for (const auto& group : kLegacyParts) {
+    const AttrSpec* target = spec.find(group.target);
+    if (!target || target->count != 3 || spec.find(group.parts[0])) continue;
+    std::vector<const AttrDesc*> parts;
+    for (const char* p : group.parts) parts.push_back(given(p));
+    if (std::none_of(parts.begin(), parts.end(), [](const AttrDesc* a) { return a != nullptr; })) continue;
+    AttrDesc* whole = given(group.target);
+    std::vector<std::string> value = tokens(whole ? whole->value : target->defaultValue);
+    if (value.size() != 3) value = {"0", "0", "0"};
+    SourceLoc loc;
+    for (int i = 0; i < 3; ++i)
+      if (parts[i]) {
+        const auto t = tokens(parts[i]->value);
+        if (t.size() != 1)
+          throw Error(parts[i]->loc, el.tag + "." + group.parts[i] + ": expects one number (SOFA's part of " +
+                                         group.target + "), got '" + parts[i]->value + "'");
+        value[i] = t[0];
+        if (!loc.known()) loc = parts[i]->loc;
+      }
+    const std::string text = value[0] + " " + value[1] + " " + value[2];
+    out.erase(std::remove_if(out.begin(), out.end(),
+                             [&](const AttrDesc& a) {
+                               return a.name == group.target || a.name == group.parts[0] || a.name == group.parts[1] ||
+                                      a.name == group.parts[2];
+                             }),
+              out.end());
+    out.push_back({group.target, text, loc});
+  }
+  if (spec.find("scale3d") && !spec.find("scale"))
+    if (AttrDesc* scale = given("scale")) {
+      const auto t = tokens(scale->value);
+      if (given("scale3d"))
+        throw Error(scale->loc, el.tag + ".scale: give either scale (SOFA's older name) or scale3d, not both");
+      scale->name = "scale3d";
+      if (t.size() == 1) scale->value = t[0] + " " + t[0] + " " + t[0];
+    }
+  return out;
 }
 
 // Parses the element's attributes against `spec` into validated values.
@@ -26,7 +94,7 @@ Attributes parseAttributes(const ElementDesc& el, const ComponentSpec& spec, con
     if (!a.defaultValue.empty() && a.kind != AttrKind::Link) parseAttrText(a, a.defaultValue, units, v);
     attrs.values()[a.name] = std::move(v);
   }
-  for (const auto& given : el.attrs) {
+  for (const auto& given : withLegacyNames(el, spec)) {
     const AttrSpec* a = spec.find(given.name);
     if (!a) {
       if (given.name == "name") continue;
@@ -83,9 +151,14 @@ struct Builder {
   void buildNode(const ElementDesc& el, Node& node, const UnitSystem& units, bool isRoot) {
     // Node attributes (root settings are read by Scene::build).
     Attributes na = parseAttributes(el, Registry::nodeSpec(), units, notes);
-    if (!isRoot)
-      for (const char* rootOnly : {"dt", "gravity", "units", "time"})
-        if (na.isSet(rootOnly)) throw na.error(rootOnly, "only the root node may set this");
+    if (!isRoot) {
+      if (na.isSet("units")) throw na.error("units", "only the root node may set this");
+      // SOFA scenes often repeat these on sub-nodes; SOFA steps the whole scene with the root's.
+      for (const char* rootsValue : {"dt", "gravity", "time"})
+        if (na.isSet(rootsValue))
+          notes.push_back(na.get(rootsValue).loc.str() + ": note: Node." + rootsValue + " on node '" + node.name() +
+                          "' is ignored: the whole scene uses the root node's, as in SOFA");
+    }
     if (!na.boolean("activated")) {
       node.setActive(false);
       notes.push_back(el.loc.str() + ": note: node '" + node.name() + "' is inactive (activated=\"false\"): it and its "
@@ -155,6 +228,8 @@ std::unique_ptr<Scene> Scene::build(const SceneDesc& desc, const Registry& regis
   auto scene = std::unique_ptr<Scene>(new Scene());
   scene->file_ = desc.file;
   scene->dir_ = desc.directory;
+  scene->searchPath_ = desc.searchPath;
+  scene->notes_ = desc.notes;
   const ElementDesc& rootEl = desc.root;
   if (rootEl.tag != "Node")
     throw Error(rootEl.loc, "the root element must be <Node>, got <" + rootEl.tag + ">");
@@ -183,10 +258,21 @@ std::unique_ptr<Scene> Scene::build(const SceneDesc& desc, const Registry& regis
 }
 
 std::string Scene::resolvePath(const std::string& p) const {
+  return resolveDataPath(p, dir_, searchPath_);
+}
+
+std::string resolveDataPath(const std::string& p, const std::string& dir, const std::vector<std::string>& searchPath) {
   namespace fs = std::filesystem;
-  fs::path path(p);
-  if (path.is_absolute() || dir_.empty()) return p;
-  return (fs::path(dir_) / path).lexically_normal().string();
+  const fs::path path(p);
+  if (path.is_absolute() || p.empty()) return p;
+  const fs::path local = dir.empty() ? path : (fs::path(dir) / path).lexically_normal();
+  std::error_code ec;
+  if (fs::exists(local, ec)) return local.string();
+  for (const auto& d : searchPath) {
+    const fs::path candidate = (fs::path(d) / path).lexically_normal();
+    if (fs::exists(candidate, ec)) return candidate.string();
+  }
+  return local.string();
 }
 
 std::string Scene::outputPath(const std::string& p) const {

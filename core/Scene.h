@@ -29,8 +29,11 @@ class Scene {
   const Eigen::Vector3d& gravity() const { return gravity_; }
   const UnitSystem& units() const { return units_; }
   const std::string& file() const { return file_; }
-  // A path written in the scene, relative to the scene's folder.
+  // A path written in the scene: relative to the scene's folder or, when it is not there, to the
+  // first folder of the data search path that has it (SOFA's lookup). A file found nowhere
+  // resolves against the scene's folder, so that the message names where it was expected.
   std::string resolvePath(const std::string& p) const;
+  const std::vector<std::string>& searchPath() const { return searchPath_; }
   // Where exporters write (`--out`); relative output names resolve against it. Defaults to the
   // scene's folder.
   void setOutputDirectory(const std::string& d) { outDir_ = d; }
@@ -63,9 +66,13 @@ class Scene {
   Eigen::Vector3d gravity_{0, -9.81, 0};
   UnitSystem units_;
   std::string file_, dir_, outDir_;
+  std::vector<std::string> searchPath_;
   std::vector<std::string> notes_;
   bool initialized_ = false;
 };
+
+// `p` relative to `dir`, else to the first folder of `searchPath` that has it (Scene::resolvePath).
+std::string resolveDataPath(const std::string& p, const std::string& dir, const std::vector<std::string>& searchPath);
 
 // Splits "@a/b/name.field" into ("a/b/name", "field"); field empty if none.
 void splitLink(const std::string& link, std::string& path, std::string& field);

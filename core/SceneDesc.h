@@ -37,7 +37,12 @@ struct ElementDesc {
 struct SceneDesc {
   std::string file;       // the scene file (for messages and relative paths)
   std::string directory;  // its folder; mesh and data paths are relative to it
+  // Where a file named in the scene is looked for when it is not in `directory` (SOFA's data
+  // search path; io/scene/SceneReader.h fills it).
+  std::vector<std::string> searchPath;
   ElementDesc root;
+  // What reading the scene noticed (an <include> attribute that matched nothing, ...).
+  std::vector<std::string> notes;
 
   // The one element at `path`; an Error listing the candidates when none or several match.
   ElementDesc& element(const std::string& path);

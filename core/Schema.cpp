@@ -43,7 +43,11 @@ bool isCosmeticAttribute(const std::string& name) {
   static const char* exact[] = {"printLog", "listening", "tags", "bbox", "componentState",
                                 "computeGlobalMatrix", "showIndices", "showIndicesScale",
                                 "showObject", "showObjectScale", "showColor", "color",
-                                "createTriangleArray", "checkTopology", "checkConnexity"};
+                                "createTriangleArray", "checkTopology", "checkConnexity",
+                                // SOFA: texture seams and materials of OBJ files, sub-elements a
+                                // loader lists for drawing, stress and bounding-box outputs, threads
+                                "handleSeams", "loadMaterial", "createSubelements", "computeVonMisesStress",
+                                "computeBoundingBox", "multiThreadSimulation", "multithreading"};
   for (const char* e : exact)
     if (name == e) return true;
   return name.rfind("draw", 0) == 0 || name.rfind("show", 0) == 0;

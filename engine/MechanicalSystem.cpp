@@ -32,6 +32,7 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
   owner.scene().initComponent(*state_);
   const int n = state_->size();
   mass_ = Eigen::VectorXd::Zero(n);
+  diagonalMass_ = Eigen::VectorXd::Zero(n);
   bool hasMass = false;
   std::vector<Component*> comps;
   node.collect(comps);
@@ -41,6 +42,8 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
     owner.scene().initComponent(*c);
     if (auto* m = dynamic_cast<Mass*>(c); m && &m->mstate() == state_) {
       mass_ += m->nodeMass();
+      if (m->consistent()) consistent_.push_back(m);
+      else diagonalMass_ += m->nodeMass();
       hasMass = true;
     }
     if (auto* f = dynamic_cast<ForceField*>(c); f && &f->mstate() == state_) forces_.push_back(f);
@@ -67,12 +70,23 @@ void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K, double undampedSc
   if (!patternReady_ || K.blockRows() != nodes()) {
     std::vector<std::pair<int, int>> pairs;
     for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
+    for (Mass* m : consistent_) m->massPattern(pairs);
     K.setPattern(nodes(), pairs);
     for (ForceField* ff : forces_) ff->prepareAssembly(K);
     patternReady_ = true;
   }
   K.setZero();
   for (ForceField* ff : forces_) ff->addStiffness(K, ff->rayleighDamped() ? 1.0 : undampedScale);
+}
+
+void MechanicalSystem::addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {
+  for (int i = 0; i < dx.cols(); ++i) out.col(i) += (dx.col(i) * diagonalMass_[i]) * factor;
+  for (Mass* m : consistent_) m->addMdx(dx, out, factor);
+}
+
+void MechanicalSystem::addMass(BlockSparseMatrix& A, double factor) const {
+  for (int i = 0; i < nodes(); ++i) A.block(A.diagonalSlot(i)).diagonal().array() += factor * diagonalMass_[i];
+  for (Mass* m : consistent_) m->addMassMatrix(A, factor);
 }
 
 void MechanicalSystem::project(Eigen::Matrix3Xd& v) const {

@@ -22,7 +22,14 @@ class MechanicalSystem {
 
   MechanicalObject& state() const { return *state_; }
   int nodes() const;
+  // The lumped mass per node (row sums of M), for gravity, contact and explicit steps.
   const Eigen::VectorXd& nodeMass() const { return mass_; }  // #nodes
+  // Whether M has off-diagonal terms (a consistent mass acts on the object).
+  bool consistentMass() const { return !consistent_.empty(); }
+  // out += factor * M dx.
+  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const;
+  // A += factor * M, for a matrix whose pattern assembleStiffness built.
+  void addMass(BlockSparseMatrix& A, double factor) const;
   const std::vector<int>& fixedNodes() const { return fixed_; }
   const std::vector<ForceField*>& forceFields() const { return forces_; }
 
@@ -46,6 +53,8 @@ class MechanicalSystem {
   std::vector<ForceField*> forces_;
   std::vector<int> fixed_;
   Eigen::VectorXd mass_;
+  Eigen::VectorXd diagonalMass_;      // the sum of the lumped masses
+  std::vector<Mass*> consistent_;     // masses with off-diagonal terms
   bool patternReady_ = false;
 };
 

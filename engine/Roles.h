@@ -57,12 +57,20 @@ class ForceField {
   virtual void setExactTangent(bool on) {}
 };
 
-// Lumped (diagonal) mass; also applies gravity.
+// Mass; also applies gravity. `nodeMass` is the lumped mass (each row of M summed), which is all
+// of M for a diagonal mass. A consistent mass (SOFA's MeshMatrixMass without lumping) also couples
+// neighbouring nodes: M_ij (times the 3 x 3 identity) for the pairs it lists.
 class Mass {
  public:
   virtual ~Mass() = default;
   virtual MechanicalObject& mstate() const = 0;
   virtual const Eigen::VectorXd& nodeMass() const = 0;  // #nodes
+  virtual bool consistent() const { return false; }
+  // Consistent masses: the node pairs M couples, out += factor M dx, and A += factor M (A's
+  // pattern holds the pairs).
+  virtual void massPattern(std::vector<std::pair<int, int>>& pairs) const {}
+  virtual void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {}
+  virtual void addMassMatrix(BlockSparseMatrix& A, double factor) const {}
 };
 
 // Projective constraints: nodes whose motion is prescribed (zero rows in the system).

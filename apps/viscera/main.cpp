@@ -28,6 +28,7 @@
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
 #include "apps/viscera/SearchCommand.h"
+#include "apps/viscera/SofaSuiteCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
 #include "apps/viscera/VelocityCommand.h"
 #include "engine/Run.h"
@@ -216,6 +217,13 @@ int cmdComponents(const std::string& name) {
 int main(int argc, char** argv) {
   CLI::App app{"Viscera: soft-tissue simulation for robot-assisted surgery research"};
   app.require_subcommand(1);
+  // Options of every command (given before or after the command's name).
+  app.fallthrough();
+  std::vector<std::string> dataPath;
+  app.add_option("--data-path", dataPath,
+                 "a folder where files named in scenes are looked for after the scene's folder, before SOFA_DATA_PATH "
+                 "and the default (share/ and share/mesh/ above the scene, SOFA's examples folder); repeatable")
+      ->check(CLI::ExistingDirectory);
   RunCommand ro;
   auto* run = app.add_subcommand("run", "run a scene");
   run->add_option("scene", ro.scene, "scene file (.xml or SOFA .scn)")->required();
@@ -255,6 +263,7 @@ int main(int argc, char** argv) {
   addDatasetCommand(app, action);
   addSearchCommand(app, action);
   addAuditCommand(app, action);
+  addSofaSuiteCommand(app, action);
 
   try {
     app.parse(argc, argv);
@@ -262,6 +271,7 @@ int main(int argc, char** argv) {
     int rc = app.exit(e);
     return rc == 0 ? kExitOk : kExitInvalidInput;
   }
+  io::setDataPath(dataPath);
   try {
     if (*run) return cmdRun(ro);
     if (*check) return cmdCheck(checkScene, checkSets);

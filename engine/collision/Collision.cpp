@@ -329,6 +329,11 @@ void SurfaceCollisionModel::finishPenalty(const Eigen::Matrix3Xd& x) {
 // Intersection and response settings
 
 void ProximityIntersection::init() {
+  // DiscreteIntersection has no distances: contacts are the features that overlap a sphere.
+  if (!spec().find("alarmDistance")) {
+    alarmDistance = contactDistance = 0.0;
+    return;
+  }
   alarmDistance = attrs_.real("alarmDistance");
   contactDistance = attrs_.real("contactDistance");
   if (contactDistance > alarmDistance)

@@ -87,6 +87,15 @@ void registerCollision(Registry& r) {
   }
   {
     ComponentSpec s;
+    s.name = "DiscreteIntersection";
+    s.category = "collision";
+    s.doc = "Exact intersection: only surface features that overlap a sphere become contacts (alarmDistance and "
+            "contactDistance 0), as SOFA's DiscreteIntersection.";
+    s.factory = [](BuildContext& c) { return std::make_unique<ProximityIntersection>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
     s.name = "CollisionResponse";
     s.aliases = {"DefaultContactManager", "RuleBasedContactManager"};
     s.category = "collision";

@@ -95,9 +95,7 @@ class ConstraintCorrection : public Component {
     sys_->computeForce(x, Eigen::Matrix3Xd::Zero(3, n), f);  // linearise the force fields at x
     sys_->assembleStiffness(A_);
     A_.scale(resp_.kFactor);
-    const Eigen::VectorXd& m = sys_->nodeMass();
-    if (resp_.mFactor != 0)
-      for (int i = 0; i < n; ++i) A_.block(A_.diagonalSlot(i)).diagonal().array() += resp_.mFactor * m[i];
+    if (resp_.mFactor != 0) sys_->addMass(A_, resp_.mFactor);
     A_.constrainNodes(sys_->fixedNodes());
     std::string msg;
     if (!chol_.factorize(A_, msg)) throw error("cannot factorize the body's step matrix for the contact compliance: " + msg);

@@ -161,9 +161,7 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::link("src").help("a loader (or other component) with position and triangles fields"));
   s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("vertex positions x y z ..."));
   s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("vertex indices, three per triangle (with `position`)"));
-  s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the vertices"));
-  s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
-  s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").alias("scale").help("scale factors applied first"));
+  addPointPlacementAttributes(s, "the vertices");
   const char* drawingOnly = "accepted for SOFA scenes; drawing only, not used";
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));

@@ -1,12 +1,15 @@
-// Lumped masses: UniformMass (equal share per node), DiagonalMass and MeshMatrixMass (a quarter
-// of each tetrahedron's mass to each of its nodes). Each applies gravity as f += m g.
+// Masses: UniformMass (equal share per node), DiagonalMass (a quarter of each tetrahedron's mass
+// to each of its nodes) and MeshMatrixMass (the consistent mass matrix of the tetrahedra, or the
+// same lumped one). Each applies gravity as f += m g with the lumped masses (M g for a uniform g).
 #include <Eigen/Dense>
 #include <cmath>
+#include <stdexcept>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
+#include "solvers/linear/BlockSparseMatrix.h"
 
 namespace viscera {
 
@@ -83,26 +86,73 @@ class RigidMass : public Component {
   }
 };
 
-// DiagonalMass and lumped MeshMatrixMass give the same nodal masses on tetrahedra.
+// DiagonalMass and lumped MeshMatrixMass give the same nodal masses on tetrahedra. MeshMatrixMass
+// without lumping (SOFA's default) keeps the consistent matrix of linear tetrahedra,
+// M_e = rho V_e / 20 (1 + delta_ij) I_3 over the element's four nodes, whose rows sum to the
+// lumped masses (a quarter of rho V_e per node).
 class TetLumpedMass : public LumpedMass {
  public:
   using LumpedMass::LumpedMass;
   void init() override {
-    if (spec().find("lumping") && !attrs_.boolean("lumping"))
-      throw error("lumping", "only the lumped (diagonal) mass matrix is supported; set lumping=\"true\"");
+    consistent_ = spec().find("lumping") && !attrs_.boolean("lumping");
     state_ = &contextState(*this);
     Topology& topo = contextTopology(*this, "topology", false);
     Eigen::VectorXd vol = lumpedVolumes(topo);
+    double density = 0;
     if (attrs_.isSet("totalMass")) {
-      m_ = vol * (attrs_.real("totalMass") / vol.sum());
+      density = attrs_.real("totalMass") / vol.sum();
     } else if (attrs_.isSet("massDensity")) {
-      m_ = vol * attrs_.real("massDensity");
+      density = attrs_.real("massDensity");
     } else if (attrs_.isSet("vertexMass")) {
+      if (consistent_) throw error("vertexMass", "gives a lumped mass: set lumping=\"true\", or give massDensity or totalMass");
       m_ = Eigen::VectorXd::Constant(vol.size(), attrs_.real("vertexMass"));
+      return;
     } else {
       throw error("set massDensity or totalMass");
     }
+    m_ = vol * density;
+    if (!consistent_) return;
+    tets_ = topo.tetrahedra();
+    elementMass_.resize(tets_.cols());
+    const Eigen::Matrix3Xd& X = state_->x0;
+    for (int e = 0; e < tets_.cols(); ++e) {
+      Eigen::Matrix3d E;
+      E << X.col(tets_(1, e)) - X.col(tets_(0, e)), X.col(tets_(2, e)) - X.col(tets_(0, e)),
+          X.col(tets_(3, e)) - X.col(tets_(0, e));
+      elementMass_[e] = density * std::abs(E.determinant()) / 6.0;
+    }
   }
+  bool consistent() const override { return consistent_; }
+  void massPattern(std::vector<std::pair<int, int>>& pairs) const override {
+    for (int e = 0; e < tets_.cols(); ++e)
+      for (int i = 0; i < 4; ++i)
+        for (int j = i + 1; j < 4; ++j) pairs.push_back({tets_(i, e), tets_(j, e)});
+  }
+  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const override {
+    for (int e = 0; e < tets_.cols(); ++e) {
+      const double off = factor * elementMass_[e] / 20.0;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int j = 0; j < 4; ++j) sum += dx.col(tets_(j, e));
+      // (M_e dx)_i = m/20 (sum_j dx_j + dx_i)
+      for (int i = 0; i < 4; ++i) out.col(tets_(i, e)) += off * (sum + dx.col(tets_(i, e)));
+    }
+  }
+  void addMassMatrix(BlockSparseMatrix& A, double factor) const override {
+    for (int e = 0; e < tets_.cols(); ++e) {
+      const double off = factor * elementMass_[e] / 20.0;
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+          const int slot = A.slot(tets_(i, e), tets_(j, e));
+          if (slot < 0) throw std::logic_error("MeshMatrixMass: the matrix pattern lacks the mass's node pairs");
+          A.block(slot).diagonal().array() += i == j ? 2 * off : off;
+        }
+    }
+  }
+
+ private:
+  bool consistent_ = false;
+  TetList tets_;
+  std::vector<double> elementMass_;
 };
 
 AttrSpec massLink() { return AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"); }
@@ -129,13 +179,17 @@ void registerMasses(Registry& r) {
     ComponentSpec s;
     s.name = name;
     s.category = "mass";
-    s.doc = "Lumped mass from the tetrahedra: each node receives a quarter of the mass of each tetrahedron it "
-            "belongs to (density x rest volume). totalMass rescales the density. Applies gravity.";
+    s.doc = std::string(name) == "DiagonalMass"
+                ? "Lumped mass from the tetrahedra: each node receives a quarter of the mass of each tetrahedron it "
+                  "belongs to (density x rest volume). totalMass rescales the density. Applies gravity."
+                : "Mass matrix of the tetrahedra (density x rest volume): the consistent matrix rho V / 20 (1 + delta_ij) "
+                  "of linear elements, as SOFA, or with lumping=\"true\" its row sums on the diagonal (as DiagonalMass). "
+                  "totalMass rescales the density. Applies gravity.";
     s.add(AttrSpec::real("massDensity").above(0).unit(Dimension::density()).help("mass per volume"));
     s.add(AttrSpec::real("totalMass").above(0).unit(Dimension::mass()).help("mass of the whole body (wins over massDensity)"));
     s.add(AttrSpec::real("vertexMass").above(0).unit(Dimension::mass()).help("the same mass for every node"));
     if (std::string(name) == "MeshMatrixMass")
-      s.add(AttrSpec::boolean("lumping").def("true").help("must be true: only the lumped matrix is supported"));
+      s.add(AttrSpec::boolean("lumping").def("false").help("lump the mass on the diagonal; false keeps the consistent mass matrix (as SOFA)"));
     s.add(AttrSpec::boolean("computeMassOnRest").def("true").help("masses from rest positions (always)"));
     s.add(AttrSpec::link("topology").help("the tetrahedral topology (default: the one in the node)"));
     s.add(massLink());

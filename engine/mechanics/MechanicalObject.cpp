@@ -24,6 +24,12 @@ Eigen::Matrix3Xd toPoints(const Component& c, const std::string& attr, const std
 void MechanicalObject::init() {
   if (attrs_.isSet("position")) {
     x = toPoints(*this, "position", linkedReals("position"));
+  } else if (attrs_.isSet("src")) {
+    auto* t = dynamic_cast<Topology*>(linkedComponent("src"));
+    if (!t) throw error("src", "does not link to a loader or topology");
+    scene().initComponent(dynamic_cast<Component&>(*t));
+    x = t->points();
+    if (x.cols() == 0) throw error("src", "links to a component with no points");
   } else {
     // As SOFA: positions come from the first topology in the context that carries points.
     for (const Node* n = &node(); n && x.cols() == 0; n = n->parent())
@@ -94,6 +100,12 @@ void applyPlacement(const Attributes& attrs, Eigen::Matrix3Xd& points) {
   for (int i = 0; i < points.cols(); ++i) points.col(i) = R * (S.asDiagonal() * points.col(i)) + T;
 }
 
+void addPointPlacementAttributes(ComponentSpec& s, const std::string& what) {
+  s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation of " + what + " (SOFA's dx dy dz)"));
+  s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation of " + what + " in degrees about x, then y, then z (SOFA's rx ry rz)"));
+  s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors of " + what + ", applied first (SOFA's scale: one factor or three)"));
+}
+
 MechanicalObject& contextState(Component& c, const std::string& linkAttr) {
   MechanicalObject* m = nullptr;
   if (c.spec().find(linkAttr) && c.attrs().isSet(linkAttr)) {
@@ -136,12 +148,11 @@ void registerMechanicalObject(Registry& r) {
           "positions; positions default to those of the topology in the same node). Rigid3d: one rigid frame "
           "(x y z qx qy qz qw), the instrument, moved by a driver (TrajectoryDriver, LinearMovementConstraint).";
   s.add(AttrSpec::choice("template", {"Vec3d", "Vec3", "Vec3f", "Rigid3d", "Rigid3", "Rigid3f"}).def("Vec3d").help("state type; the f variants are computed in double precision"));
+  s.add(AttrSpec::link("src").help("a loader or topology whose points are the initial positions (Vec3d)"));
   s.add(AttrSpec::reals("position").unit(Dimension::length()).linked().help("initial positions x y z ... (Rigid3d: x y z qx qy qz qw), or a link"));
   s.add(AttrSpec::reals("rest_position").unit(Dimension::length()).linked().help("rest positions (default: initial positions; Vec3d only)"));
   s.add(AttrSpec::reals("velocity").unit(Dimension::velocity()).linked().help("initial velocity: one for all nodes or one per node (Rigid3d: vx vy vz wx wy wz)"));
-  s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation applied to the initial positions"));
-  s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
-  s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors applied first"));
+  addPointPlacementAttributes(s, "the initial positions");
   s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
     if (isRigidTemplate(ctx.attrs().str("template"))) return std::make_unique<RigidObject>(ctx);
     return std::make_unique<MechanicalObject>(ctx);

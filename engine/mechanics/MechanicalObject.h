@@ -37,6 +37,9 @@ void registerMechanicalObject(Registry& r);
 // Applies a component's `scale3d`, then `rotation` (degrees about x, then y, then z), then
 // `translation` to points (MechanicalObject and mesh loaders declare these attributes).
 void applyPlacement(const Attributes& attrs, Eigen::Matrix3Xd& points);
+// Declares those three attributes (SOFA's older dx dy dz, rx ry rz and scale are read into them
+// by the scene builder). `what` names the points they place.
+void addPointPlacementAttributes(ComponentSpec& spec, const std::string& what);
 
 // The MechanicalObject a component acts on: its `mstate` link if set, else the nearest in its
 // context. Throws a clear error if there is none.

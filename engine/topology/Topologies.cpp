@@ -10,6 +10,7 @@
 #include "engine/topology/GridSplit.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/InputCache.h"
+#include "io/surface/SurfaceMesh.h"
 
 namespace viscera {
 
@@ -146,6 +147,7 @@ class MeshLoader : public Component, public Topology {
       throw error("filename", e.what());
     }
     applyPlacement(attrs_, mesh_.points);
+    if (attrs_.boolean("flipNormals")) mesh_.triangles.row(1).swap(mesh_.triangles.row(2));
   }
   const Eigen::Matrix3Xd& points() const override { return mesh_.points; }
   const TetList& tetrahedra() const override { return mesh_.tets; }
@@ -160,6 +162,40 @@ class MeshLoader : public Component, public Topology {
  private:
   io::VolumeMesh mesh_;
 };
+
+class SurfaceLoader : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    const std::string path = scene().resolvePath(attrs_.str("filename"));
+    if (!std::filesystem::exists(path)) throw error("filename", "surface file '" + path + "' does not exist");
+    try {
+      surface_ = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
+    } catch (const Error& e) {
+      throw error("filename", e.what());
+    }
+    applyPlacement(attrs_, surface_.points);
+    if (attrs_.boolean("flipNormals")) io::flipSurface(surface_);
+  }
+  const Eigen::Matrix3Xd& points() const override { return surface_.points; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(surface_.points.data(), surface_.points.data() + surface_.points.size());
+    else if (name == "triangles") out.values.assign(surface_.triangles.data(), surface_.triangles.data() + surface_.triangles.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  io::SurfaceMesh surface_;
+};
+
+// What every mesh loader declares: the file, its placement and SOFA's normal flip.
+void addLoaderAttributes(ComponentSpec& s) {
+  s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file or found along the data search path"));
+  addPointPlacementAttributes(s, "the points");
+  s.add(AttrSpec::boolean("flipNormals").def("false").help("reverse the orientation of the surface triangles"));
+}
 
 }  // namespace
 
@@ -206,11 +242,19 @@ void registerTopologies(Registry& r) {
     s.doc = std::string(name) == "MeshGmshLoader"
                 ? "Reads a Gmsh .msh mesh (legacy $NOD/$ELM, v2 and v4 ASCII); fields position, tetrahedra, triangles."
                 : "Reads a VTK mesh (.vtk legacy ASCII, .vtu); fields position, tetrahedra, triangles.";
-    s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file"));
-    s.add(AttrSpec::reals("translation", 3).def("0 0 0").unit(Dimension::length()).help("translation of the points"));
-    s.add(AttrSpec::reals("rotation", 3).def("0 0 0").help("rotation in degrees about x, then y, then z"));
-    s.add(AttrSpec::reals("scale3d", 3).def("1 1 1").help("scale factors applied first"));
+    addLoaderAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<MeshLoader>(c); };
+    r.add(std::move(s));
+  }
+  for (const char* name : {"MeshOBJLoader", "MeshSTLLoader", "MeshOffLoader"}) {
+    ComponentSpec s;
+    s.name = name;
+    s.category = "loader";
+    s.doc = std::string("Reads a surface (") + (std::string(name) == "MeshOBJLoader" ? ".obj" : std::string(name) == "MeshSTLLoader" ? ".stl, ASCII or binary" : ".off") +
+            "; polygons are split into triangles); fields position and triangles. Feeds a MechanicalObject (`src` or its "
+            "node), an OglModel or a collision surface.";
+    addLoaderAttributes(s);
+    s.factory = [](BuildContext& c) { return std::make_unique<SurfaceLoader>(c); };
     r.add(std::move(s));
   }
 }

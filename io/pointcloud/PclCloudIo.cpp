@@ -230,6 +230,8 @@ PcdLayout checkPcdHeader(const std::string& path, std::istream& in) {
   while (std::getline(in, raw)) {
     ++line;
     const auto w = splitWords(raw);
+    // PCL's reader crashes on a header line of blanks (spaces or tabs) before FIELDS.
+    if (w.empty() && !raw.empty() && raw != "\r") fail(line, "a header line holding only blanks (not a PCD header)");
     if (w.empty() || w[0][0] == '#') continue;
     const std::string& key = w[0];
     const std::vector<std::string> args(w.begin() + 1, w.end());
@@ -312,16 +314,19 @@ void readBlob(const std::string& path, Format format, pcl::PCLPointCloud2& blob,
   if (format == Format::Pcd) {
     std::ifstream in(path, std::ios::binary);
     const PcdLayout layout = checkPcdHeader(path, in);
+    // The body starts after the DATA line.
+    const long long bodyStart = in ? static_cast<long long>(in.tellg()) : 0;
     encoding = "pcd " + layout.data;
     if (layout.data == "ascii") checkPcdAsciiBody(path, in, layout);
-    // Binary bodies are checked against the file's size before PCL allocates what the header
-    // announces; LZF expands its input at most about 90 times, so a compressed body is bounded by 100.
-    const long long size = static_cast<long long>(fs::file_size(path));
+    // Binary bodies are checked against the bytes after the header before PCL reads what the
+    // header announces (it reads past the end of a short body); LZF expands its input at most
+    // about 90 times, so a compressed body is bounded by 100.
+    const long long size = static_cast<long long>(fs::file_size(path)) - std::max(0LL, bodyStart);
     const long long room = layout.data == "binary" ? size : 100 * size;
     if (layout.data != "ascii" && layout.bytesPerPoint > 0 && layout.points > room / layout.bytesPerPoint)
       fail(path, "the header declares " + std::to_string(layout.points) + " points of " +
                      std::to_string(layout.bytesPerPoint) + " bytes, but the file has " + std::to_string(size) +
-                     " bytes (truncated, or a corrupt header)");
+                     " bytes after its header (truncated, or a corrupt header)");
     pcl::PCDReader reader;
     int version = 0;
     if (reader.read(path, blob, origin, orientation, version) < 0)

@@ -1,10 +1,13 @@
 #include "core/Files.h"
+#include "core/Scene.h"
 #include "io/scene/SceneReader.h"
 
 #include <algorithm>
 #include <cctype>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <pugixml.hpp>
 #include <sstream>
 
@@ -14,6 +17,22 @@ namespace {
 
 // Deeper scenes are refused rather than followed (every later stage walks the tree).
 constexpr int kMaxDepth = 256;
+// Includes nested deeper than this are refused (a file that includes itself through others).
+constexpr int kMaxIncludeDepth = 16;
+
+std::mutex dataPathMutex;
+std::vector<std::string>& givenDataPath() {
+  static std::vector<std::string> folders;
+  return folders;
+}
+
+// What the files of one scene share while they are read: the search path for includes, the
+// chain of files being included (to refuse cycles) and the notes.
+struct ReadContext {
+  std::vector<std::string> searchPath;
+  std::vector<std::string> includeChain;
+  std::vector<std::string> notes;
+};
 
 bool blank(const char* s) {
   for (; *s; ++s)
@@ -40,10 +59,26 @@ class LineIndex {
   std::vector<size_t> starts_;
 };
 
+ElementDesc parseRoot(const std::string& text, const std::string& file, ReadContext& rc, int depth);
+
+// Replaces every attribute called `a.name` in `el` and below by `a`; returns how many it replaced.
+int replaceAttribute(ElementDesc& el, const AttrDesc& a) {
+  int n = 0;
+  for (auto& mine : el.attrs)
+    if (mine.name == a.name) {
+      mine.value = a.value;
+      mine.loc = a.loc;
+      ++n;
+    }
+  for (auto& c : el.children) n += replaceAttribute(c, a);
+  return n;
+}
+
 struct Converter {
   const std::string& text;
   const std::string& file;
   LineIndex lines;
+  ReadContext& rc;
 
   SourceLoc at(size_t offset) const {
     SourceLoc loc{file, 0, 0};
@@ -96,19 +131,63 @@ struct Converter {
       el.attrs.push_back(std::move(d));
     }
     for (const auto& c : n.children()) {
-      if (c.type() == pugi::node_element) el.children.push_back(convert(c, depth + 1));
-      else refuseText(c, "inside <" + el.tag + ">");
+      if (c.type() != pugi::node_element) {
+        refuseText(c, "inside <" + el.tag + ">");
+        continue;
+      }
+      ElementDesc child = convert(c, depth + 1);
+      if (child.tag != "include") {
+        el.children.push_back(std::move(child));
+        continue;
+      }
+      ElementDesc included = include(child, depth + 1);
+      const AttrDesc* name = included.find("name");
+      if (included.tag == "Group" || (included.tag == "Node" && name && name->value == "Group"))
+        for (auto& g : included.children) el.children.push_back(std::move(g));
+      else
+        el.children.push_back(std::move(included));
     }
     return el;
   }
+
+  // The root element of the file an <include> names, with the include's attributes applied.
+  ElementDesc include(const ElementDesc& inc, int depth) const {
+    const AttrDesc* href = inc.find("href");
+    if (!href || href->value.empty()) throw Error(inc.loc, "include.href: required attribute is missing (the file to include)");
+    const std::string dir = std::filesystem::path(file).parent_path().string();
+    const std::string path = resolveDataPath(href->value, dir, rc.searchPath);
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec))
+      throw Error(href->loc, "include.href: '" + href->value + "' is neither in " + (dir.empty() ? "." : dir) +
+                                 " nor in the data search path (" + std::to_string(rc.searchPath.size()) +
+                                 " folders; --data-path and SOFA_DATA_PATH add to it)");
+    const std::string canonical = std::filesystem::weakly_canonical(path, ec).string();
+    if (std::find(rc.includeChain.begin(), rc.includeChain.end(), canonical) != rc.includeChain.end())
+      throw Error(href->loc, "include.href: '" + path + "' includes itself (through " +
+                                 std::to_string(rc.includeChain.size()) + " files)");
+    if (static_cast<int>(rc.includeChain.size()) >= kMaxIncludeDepth)
+      throw Error(href->loc, "include.href: includes nested more than " + std::to_string(kMaxIncludeDepth) + " deep");
+    rc.includeChain.push_back(canonical);
+    ElementDesc root = parseRoot(readInputFile(path, "the included file"), path, rc, depth);
+    rc.includeChain.pop_back();
+    for (const auto& a : inc.attrs) {
+      if (a.name == "href") continue;
+      if (a.name == "name") {
+        root.set("name", a.value, a.loc);
+        continue;
+      }
+      if (replaceAttribute(root, a) == 0)
+        rc.notes.push_back(a.loc.str() + ": note: include." + a.name + " matches no attribute written in " + path +
+                           "; ignored");
+    }
+    return root;
+  }
 };
 
-}  // namespace
-
-SceneDesc parseSceneText(const std::string& text, const std::string& file) {
+ElementDesc parseRoot(const std::string& text, const std::string& file, ReadContext& rc, int depth) {
   pugi::xml_document doc;
   pugi::xml_parse_result r = doc.load_buffer(text.data(), text.size(), pugi::parse_default, pugi::encoding_utf8);
-  Converter conv{text, file, LineIndex(text)};
+  Converter conv{text, file, LineIndex(text), rc};
   if (!r) {
     size_t off = r.offset < 0 ? 0 : static_cast<size_t>(r.offset);
     throw Error(conv.at(std::min(off, text.size())), std::string("malformed XML: ") + r.description());
@@ -127,10 +206,56 @@ SceneDesc parseSceneText(const std::string& text, const std::string& file) {
       if (!std::isspace(static_cast<unsigned char>(text[i])) && !(i < 3 && text.compare(0, 3, "\xEF\xBB\xBF") == 0))
         throw Error(conv.at(i), "text " + quoted(std::string_view(text).substr(i, to - i)) +
                                     " outside the root element: a scene holds elements only");
+  return conv.convert(root, depth);
+}
+
+}  // namespace
+
+std::vector<std::string> dataSearchPath(const std::string& sceneFile) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> out;
+  {
+    std::lock_guard<std::mutex> lock(dataPathMutex);
+    out = givenDataPath();
+  }
+  if (const char* env = std::getenv("SOFA_DATA_PATH")) {
+    std::string list = env;
+    for (size_t start = 0; start <= list.size();) {
+      size_t end = list.find(':', start);
+      if (end == std::string::npos) end = list.size();
+      if (end > start) out.push_back(list.substr(start, end - start));
+      start = end + 1;
+    }
+  }
+  std::error_code ec;
+  fs::path dir = fs::absolute(fs::path(sceneFile), ec).parent_path().lexically_normal();
+  for (fs::path d = dir;; d = d.parent_path()) {
+    if (fs::is_directory(d / "share", ec)) {
+      out.push_back((d / "share").string());
+      if (fs::is_directory(d / "share" / "mesh", ec)) out.push_back((d / "share" / "mesh").string());
+    }
+    if (d.filename() == "examples") out.push_back(d.string());
+    if (d == d.parent_path() || d.empty()) break;
+  }
+  return out;
+}
+
+void setDataPath(std::vector<std::string> folders) {
+  std::lock_guard<std::mutex> lock(dataPathMutex);
+  givenDataPath() = std::move(folders);
+}
+
+SceneDesc parseSceneText(const std::string& text, const std::string& file) {
+  ReadContext rc;
+  rc.searchPath = dataSearchPath(file);
+  std::error_code ec;
+  rc.includeChain.push_back(std::filesystem::weakly_canonical(file, ec).string());
   SceneDesc desc;
   desc.file = file;
   desc.directory = std::filesystem::path(file).parent_path().string();
-  desc.root = conv.convert(root);
+  desc.root = parseRoot(text, file, rc, 0);
+  desc.searchPath = std::move(rc.searchPath);
+  desc.notes = std::move(rc.notes);
   return desc;
 }
 

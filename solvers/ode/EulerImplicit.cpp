@@ -51,7 +51,6 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     // Contact stiffness is not Rayleigh damped: its K enters as -h^2 K (and h K v), not
     // -h (h + rK) K, hence the scale h / (h + rK) on the undamped fields.
     const double uScale = h / (h + rK_);
-    const Eigen::VectorXd& m = sys_->nodeMass();
     Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
     LinearProblem problem;
     if (linear_->needsMatrix()) {
@@ -59,7 +58,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       K_.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
       // A = kFact K + mFact M, constrained.
       K_.scale(kFact);
-      for (int i = 0; i < n; ++i) K_.block(K_.diagonalSlot(i)).diagonal().array() += mFact * m[i];
+      sys_->addMass(K_, mFact);
       K_.constrainNodes(sys_->fixedNodes());
       problem.matrix = &K_;
       problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
@@ -70,15 +69,18 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = K_.block(K_.diagonalSlot(i)).diagonal();
     } else {
       sys_->addKdx(s.v, Kv, 1.0, uScale);
-      problem.apply = [this, n, mFact, kFact, uScale, &m](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
-        Eigen::Matrix3Xd Q = P * m.asDiagonal() * mFact;
+      problem.apply = [this, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+        const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
+        Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
+        sys_->addMdx(P, Q, mFact);
         sys_->addKdx(P, Q, kFact, uScale);
         sys_->project(Q);
         q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
       };
     }
-    Eigen::Matrix3Xd b = h * (f + (h + rK_) * Kv - rM_ * (s.v * m.asDiagonal()));
+    Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, n);
+    if (rM_ != 0) sys_->addMdx(s.v, Mv, 1.0);
+    Eigen::Matrix3Xd b = h * (f + (h + rK_) * Kv - rM_ * Mv);
     sys_->project(b);
     Eigen::VectorXd bv = Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n);
     if (dv_.size() != 3 * n) dv_ = Eigen::VectorXd::Zero(3 * n);

@@ -221,18 +221,28 @@ TEST(SceneGraph, CosmeticAttributesGiveNotes) {
 }
 
 TEST(SceneGraph, RootSettingsOnlyOnTheRoot) {
-  const std::string text = R"(<Node name="root">
+  // SOFA steps the whole scene with the root's dt, gravity and time: a sub-node's are noted and
+  // ignored, as SOFA does. The unit system is Viscera's own and stays an error there.
+  auto scene = build(R"(<Node name="root" dt="0.01">
   <Node name="body" dt="0.001">
   </Node>
 </Node>
-)";
+)");
+  EXPECT_DOUBLE_EQ(scene->dt(), 0.01);
+  ASSERT_FALSE(scene->notes().empty());
+  EXPECT_NE(scene->notes()[0].find("graph_test.xml:2:"), std::string::npos) << scene->notes()[0];
+  EXPECT_NE(scene->notes()[0].find("Node.dt on node 'body' is ignored"), std::string::npos) << scene->notes()[0];
   try {
-    build(text);
-    ADD_FAILURE() << "dt on a child node accepted";
+    build(R"(<Node name="root">
+  <Node name="body" units="mm g s">
+  </Node>
+</Node>
+)");
+    ADD_FAILURE() << "units on a child node accepted";
   } catch (const Error& e) {
     const std::string w = e.what();
     EXPECT_NE(w.find("graph_test.xml:2:"), std::string::npos) << w;
-    EXPECT_NE(w.find("Node.dt"), std::string::npos) << w;
+    EXPECT_NE(w.find("Node.units"), std::string::npos) << w;
   }
 }
 

@@ -9,6 +9,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
+#include <set>
 #include <string>
 
 #include "core/Error.h"
@@ -17,9 +19,24 @@ namespace viscera_fuzz {
 
 // Writes `size` bytes to a file of this process with the extension `ext` (".msh", ".pcd", ...) and
 // returns its path; the same path is reused by every input of the process.
+// The files asFile wrote, and the output folders named after them (PATH.d), removed when the
+// process exits normally.
+struct TemporaryFiles {
+  std::set<std::string> paths;
+  ~TemporaryFiles() {
+    std::error_code ec;
+    for (const auto& p : paths) {
+      std::filesystem::remove_all(p, ec);
+      std::filesystem::remove_all(p + ".d", ec);
+    }
+  }
+};
+
 inline std::string asFile(const uint8_t* data, size_t size, const std::string& ext) {
+  static TemporaryFiles written;
   const char* dir = std::getenv("TMPDIR");
   const std::string path = std::string(dir && *dir ? dir : "/tmp") + "/viscera-fuzz-" + std::to_string(::getpid()) + ext;
+  written.paths.insert(path);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (!f) std::abort();
   if (size && std::fwrite(data, 1, size, f) != size) std::abort();

@@ -31,7 +31,7 @@ TEST(VisualCli, ComponentsListTheVisualModelAndMappings) {
   EXPECT_NE(identity.out.find("IdentityMapping [mapping]"), std::string::npos) << identity;
   const RunResult ogl = runViscera({"components", "OglModel"});
   EXPECT_NE(ogl.out.find("OglModel (also VisualModel) [visual]"), std::string::npos) << ogl;
-  EXPECT_NE(ogl.out.find("scale3d (real list, default \"1 1 1\") alias scale"), std::string::npos) << ogl;
+  EXPECT_NE(ogl.out.find("scale3d (real list, default \"1 1 1\"): scale factors of the vertices, applied first (SOFA's scale"), std::string::npos) << ogl;
   // No longer in the accepted-and-ignored list.
   const RunResult all = runViscera({"components"});
   const std::string ignored = all.out.substr(all.out.find("Accepted and ignored:"));

@@ -1,0 +1,216 @@
+// SOFA scenes as SOFA users write them: <include>, files found along SOFA's data search path, the
+// legacy attribute names SOFA still reads (dx dy dz, rx ry rz, scale, nx ny nz, xmin ... zmax),
+// MechanicalObject src="@loader", surface loaders, and dt/gravity on sub-nodes.
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <fstream>
+#include <string>
+
+#include "builtin/Builtins.h"
+#include "core/Scene.h"
+#include "engine/Roles.h"
+#include "engine/Simulation.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/scene/SceneReader.h"
+#include "tests/support/ErrorOf.h"
+#include "tests/support/TempDir.h"
+
+using namespace viscera;
+using viscera::test_support::errorOf;
+using viscera::test_support::TempDir;
+
+namespace {
+
+void write(const std::string& path, const std::string& text) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  std::ofstream(path) << text;
+}
+
+const MechanicalObject& object(const Scene& s, const std::string& name) {
+  for (auto* m : s.all<MechanicalObject>())
+    if (m->name() == name) return *m;
+  throw std::runtime_error("no MechanicalObject " + name);
+}
+
+bool hasNote(const Scene& s, const std::string& part) {
+  for (const auto& n : s.notes())
+    if (n.find(part) != std::string::npos) return true;
+  return false;
+}
+
+const char* kTopologyFragment = R"(<Node name="Group">
+  <TetrahedronSetTopologyContainer name="Container" src="@" tags=" "/>
+  <TetrahedronSetGeometryAlgorithms name="GeomAlgo" template="Vec3"/>
+</Node>)";
+
+const char* kTetMesh = R"(# vtk DataFile Version 2.0
+one tetrahedron
+ASCII
+DATASET UNSTRUCTURED_GRID
+POINTS 4 double
+0 0 0
+1 0 0
+0 1 0
+0 0 1
+CELLS 1 5
+4 0 1 2 3
+CELL_TYPES 1
+10
+)";
+
+}  // namespace
+
+TEST(SofaSceneForms, IncludeOfAGroupMergesIntoTheNodeAndTakesTheIncludesAttributes) {
+  TempDir dir;
+  write(dir / "Objects/TetrahedronSetTopology.xml", kTopologyFragment);
+  write(dir / "mesh/tet.vtk", kTetMesh);
+  write(dir / "scene.scn", R"(<Node name="root">
+  <Node name="body">
+    <MeshVTKLoader name="loader" filename="mesh/tet.vtk"/>
+    <include href="Objects/TetrahedronSetTopology.xml" src="@loader"/>
+    <MechanicalObject name="dofs" src="@loader" dx="10" scale="2"/>
+  </Node>
+</Node>)");
+  const SceneDesc desc = io::readScene(dir / "scene.scn");
+  // The fragment's children sit in "body" beside the loader; its `src="@"` took the include's value.
+  const ElementDesc& container = desc.element("body/Container");
+  EXPECT_EQ(container.find("src")->value, "@loader");
+  auto scene = buildScene(desc);
+  scene->init();
+  const MechanicalObject& mo = object(*scene, "dofs");
+  ASSERT_EQ(mo.size(), 4);
+  // scale 2 (one factor for all axes), then dx 10.
+  EXPECT_DOUBLE_EQ(mo.x(0, 1), 12.0);
+  EXPECT_DOUBLE_EQ(mo.x(1, 2), 2.0);
+  EXPECT_DOUBLE_EQ(mo.x(2, 3), 2.0);
+  EXPECT_DOUBLE_EQ(mo.x(0, 0), 10.0);
+}
+
+TEST(SofaSceneForms, IncludeOfANamedNodeAddsARenamedChildAndNotesUnmatchedAttributes) {
+  TempDir dir;
+  write(dir / "Objects/Ball.xml", R"(<Node name="Ball">
+  <MechanicalObject name="dofs" position="0 0 0" dy="0"/>
+  <UniformMass totalMass="1"/>
+</Node>)");
+  write(dir / "scene.scn", R"(<Node name="root">
+  <include name="Ball 1" href="Objects/Ball.xml" dy="-10" contactStiffness="5"/>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  ASSERT_EQ(scene->root().children().size(), 1u);
+  EXPECT_EQ(scene->root().children()[0]->name(), "Ball 1");
+  EXPECT_DOUBLE_EQ(object(*scene, "dofs").x(1, 0), -10.0);
+  EXPECT_TRUE(hasNote(*scene, "include.contactStiffness matches no attribute")) << scene->notes().size();
+}
+
+TEST(SofaSceneForms, IncludeErrorsNameTheFileAndLine) {
+  TempDir dir;
+  write(dir / "a.xml", R"(<Node name="A"><include href="b.xml"/></Node>)");
+  write(dir / "b.xml", R"(<Node name="B"><include href="a.xml"/></Node>)");
+  write(dir / "scene.scn", "<Node name=\"root\">\n  <include href=\"a.xml\"/>\n</Node>");
+  std::string e = errorOf([&] { io::readScene(dir / "scene.scn"); });
+  EXPECT_NE(e.find("includes itself"), std::string::npos) << e;
+  write(dir / "scene.scn", "<Node name=\"root\">\n  <include href=\"missing.xml\"/>\n</Node>");
+  e = errorOf([&] { io::readScene(dir / "scene.scn"); });
+  EXPECT_NE(e.find("scene.scn:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("'missing.xml' is neither in"), std::string::npos) << e;
+  write(dir / "scene.scn", "<Node name=\"root\">\n  <include/>\n</Node>");
+  e = errorOf([&] { io::readScene(dir / "scene.scn"); });
+  EXPECT_NE(e.find("include.href: required"), std::string::npos) << e;
+}
+
+TEST(SofaSceneForms, FilesAreFoundAlongTheDataSearchPath) {
+  TempDir dir;
+  // SOFA's source tree: share/mesh beside examples/.
+  write(dir / "share/mesh/tet.vtk", kTetMesh);
+  write(dir / "elsewhere/meshes/other.vtk", kTetMesh);
+  const std::string scene = R"(<Node name="root">
+  <MeshVTKLoader name="loader" filename="FILE"/>
+  <MechanicalObject name="dofs" src="@loader"/>
+</Node>)";
+  auto load = [&](const std::string& file) {
+    std::string text = scene;
+    text.replace(text.find("FILE"), 4, file);
+    write(dir / "examples/Component/scene.scn", text);
+    auto s = buildScene(io::readScene(dir / "examples/Component/scene.scn"));
+    s->init();
+    return object(*s, "dofs").size();
+  };
+  EXPECT_EQ(load("tet.vtk"), 4);       // share/mesh, by default
+  EXPECT_EQ(load("mesh/tet.vtk"), 4);  // share/
+  // SOFA_DATA_PATH and --data-path (setDataPath) add folders.
+  std::string e = errorOf([&] { load("meshes/other.vtk"); });
+  EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
+  ::setenv("SOFA_DATA_PATH", (dir / "elsewhere").c_str(), 1);
+  EXPECT_EQ(load("meshes/other.vtk"), 4);
+  ::unsetenv("SOFA_DATA_PATH");
+  io::setDataPath({dir / "elsewhere"});
+  EXPECT_EQ(load("meshes/other.vtk"), 4);
+  io::setDataPath({});
+}
+
+TEST(SofaSceneForms, LegacyGridNamesAndSubNodeSettings) {
+  TempDir dir;
+  write(dir / "scene.scn", R"(<Node name="root" dt="0.01" gravity="0 -9.81 0">
+  <Node name="body" dt="0.5" gravity="0 0 -1">
+    <RegularGridTopology name="grid" nx="3" ny="2" nz="2" xmin="-1" xmax="1" ymin="0" ymax="1" zmin="0" zmax="2"/>
+    <MechanicalObject name="dofs" rx="90"/>
+  </Node>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  const MechanicalObject& mo = object(*scene, "dofs");
+  ASSERT_EQ(mo.size(), 12);
+  // Node 1 is (0, 0, 0) before the rotation of 90 degrees about x; the last node (1, 1, 2) goes to (1, -2, 1).
+  EXPECT_NEAR(mo.x(0, 11), 1.0, 1e-12);
+  EXPECT_NEAR(mo.x(1, 11), -2.0, 1e-12);
+  EXPECT_NEAR(mo.x(2, 11), 1.0, 1e-12);
+  // The root's dt and gravity hold for the whole scene, as in SOFA, with a note.
+  EXPECT_DOUBLE_EQ(scene->dt(), 0.01);
+  EXPECT_DOUBLE_EQ(scene->gravity().y(), -9.81);
+  EXPECT_TRUE(hasNote(*scene, "Node.gravity on node 'body' is ignored"));
+  EXPECT_TRUE(hasNote(*scene, "Node.dt on node 'body' is ignored"));
+  // A legacy part and its vector together, or a part that is not one number, are errors.
+  write(dir / "scene.scn", R"(<Node name="root"><MechanicalObject position="0 0 0" scale="2" scale3d="1 1 1"/></Node>)");
+  std::string e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn")); });
+  EXPECT_NE(e.find("give either scale"), std::string::npos) << e;
+  write(dir / "scene.scn", R"(<Node name="root"><MechanicalObject position="0 0 0" dx="1 2"/></Node>)");
+  e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn")); });
+  EXPECT_NE(e.find("MechanicalObject.dx: expects one number"), std::string::npos) << e;
+}
+
+TEST(SofaSceneForms, SurfaceLoadersFeedAMechanicalObject) {
+  TempDir dir;
+  write(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  write(dir / "scene.scn", R"(<Node name="root">
+  <MeshOBJLoader name="surface" filename="tri.obj" handleSeams="1" translation="0 0 5"/>
+  <MechanicalObject name="dofs" src="@surface"/>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  const MechanicalObject& mo = object(*scene, "dofs");
+  ASSERT_EQ(mo.size(), 4);
+  EXPECT_DOUBLE_EQ(mo.x(2, 3), 6.0);
+  // handleSeams (texture seams) is accepted with a note.
+  EXPECT_TRUE(hasNote(*scene, "MeshOBJLoader.handleSeams does not change the physics"));
+}
+
+TEST(SofaSceneForms, IndexRangesExpandInIntegerLists) {
+  TempDir dir;
+  write(dir / "scene.scn", R"(<Node name="root">
+  <MechanicalObject name="dofs" position="0 0 0 1 0 0 2 0 0 3 0 0 4 0 0 5 0 0"/>
+  <UniformMass totalMass="6"/>
+  <FixedConstraint name="fixed" indices="0-2 5"/>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  const ProjectiveConstraint* fixed = scene->all<ProjectiveConstraint>().front();
+  EXPECT_EQ(fixed->fixedNodes(), (std::vector<int>{0, 1, 2, 5}));
+  write(dir / "scene.scn", R"(<Node name="root"><MechanicalObject position="0 0 0"/><FixedConstraint indices="3-1"/></Node>)");
+  std::string e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn")); });
+  EXPECT_NE(e.find("range '3-1' ends before it starts"), std::string::npos) << e;
+  write(dir / "scene.scn", R"(<Node name="root"><MechanicalObject position="0 0 0"/><FixedConstraint indices="0-99999999999"/></Node>)");
+  e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn")); });
+  EXPECT_NE(e.find("more than 10000000 values"), std::string::npos) << e;
+}

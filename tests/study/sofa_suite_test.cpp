@@ -1,0 +1,129 @@
+// SOFA's regression suite driver: the list and dump formats, the comparison on a scene whose
+// state is known in closed form, and SOFA's own regression scenes that pass here (they must stay
+// passing).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "study/SofaSuite.h"
+#include "tests/support/ErrorOf.h"
+#include "tests/support/TempDir.h"
+
+using namespace viscera;
+using viscera::test_support::errorOf;
+using viscera::test_support::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+void write(const std::string& path, const std::string& text) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path) << text;
+}
+
+// A point mass falling freely under symplectic Euler: after N steps of h, z = h^2 g N (N + 1) / 2
+// and v = h g N.
+const char* kFallScene = R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <EulerExplicitSolver/>
+  <MechanicalObject name="ball" position="1 2 3"/>
+  <UniformMass totalMass="1"/>
+</Node>)";
+
+std::string fallDump(double zError) {
+  const double h = 0.01, g = -10;
+  const int N = 50;
+  std::ostringstream s;
+  s.precision(17);
+  s << "T= 0\n  X= 1 2 3\n  V= 0 0 0\n";
+  s << "T= " << N * h << "\n  X= 1 2 " << 3 + h * h * g * N * (N + 1) / 2 + zError << "\n  V= 0 0 " << h * g * N << "\n";
+  return s.str();
+}
+
+}  // namespace
+
+TEST(SofaSuite, ReadsTheListFormatAndResolvesTheReferenceFolder) {
+  TempDir dir;
+  write(dir / "examples/list.regression-tests",
+        "# comment\n\n### References ###\n$REGRESSION_DIR/references/examples\n\n### Scenes ###\nA/fall.scn 50 1e-4 0 1\n"
+        "B/other.scn 10 1e-8 1 0\n");
+  auto list = study::readRegressionList(dir / "examples/list.regression-tests", dir / "reg");
+  EXPECT_EQ(list.referenceDir, (fs::path(dir / "reg") / "references/examples").string());
+  ASSERT_EQ(list.entries.size(), 2u);
+  EXPECT_EQ(list.entries[0].scene, "A/fall.scn");
+  EXPECT_EQ(list.entries[0].steps, 50);
+  EXPECT_DOUBLE_EQ(list.entries[1].epsilon, 1e-8);
+  EXPECT_TRUE(list.entries[1].mapped);
+  EXPECT_FALSE(list.entries[1].lastOnly);
+  EXPECT_EQ(list.entries[1].line, 8);
+  // Without --regression-dir or $REGRESSION_DIR: the folder `regression` beside the examples.
+  ::unsetenv("REGRESSION_DIR");
+  list = study::readRegressionList(dir / "examples/list.regression-tests");
+  EXPECT_EQ(list.referenceDir, (fs::path(dir.str()) / "regression/references/examples").string());
+  write(dir / "bad.regression-tests", "refs\nA/fall.scn fifty 1e-4 0 1\n");
+  const std::string e = errorOf([&] { study::readRegressionList(dir / "bad.regression-tests"); });
+  EXPECT_NE(e.find("bad.regression-tests:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("STEPS"), std::string::npos) << e;
+}
+
+TEST(SofaSuite, ReadsStateDumpsAndRefusesMalformedOnes) {
+  TempDir dir;
+  write(dir / "d.txt", fallDump(0));
+  const auto frames = study::readStateDump(dir / "d.txt");
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_DOUBLE_EQ(frames[1].t, 0.5);
+  ASSERT_EQ(frames[1].x.size(), 3u);
+  EXPECT_DOUBLE_EQ(frames[1].v[2], -5.0);
+  write(dir / "bad.txt", "T= 0\n  X= 1 2 three\n");
+  const std::string e = errorOf([&] { study::readStateDump(dir / "bad.txt"); });
+  EXPECT_NE(e.find("bad.txt:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("'three' is not a number"), std::string::npos) << e;
+}
+
+TEST(SofaSuite, ComparesWithTheReferenceAsSofaDoes) {
+  TempDir dir;
+  write(dir / "examples/A/fall.scn", kFallScene);
+  write(dir / "examples/list", "$REGRESSION_DIR/references\nA/fall.scn 50 1e-6 0 1\n");
+  const std::string ref = dir / "regression/references/A/fall.scn.reference_0_ball_mstate.txt.gz";
+  auto run = [&](double zError) {
+    write(ref, fallDump(zError));
+    const auto list = study::readRegressionList(dir / "examples/list", dir / "regression");
+    return study::runRegressionScene(list, list.entries[0], dir / "examples");
+  };
+  study::SuiteResult r = run(0);
+  EXPECT_EQ(r.status, study::SuiteResult::Status::Passed) << r.detail;
+  EXPECT_LT(r.maxDistance, 1e-12);
+  EXPECT_EQ(r.steps, 50);
+  // An error of 6e-6 in one coordinate: SOFA's criterion is 2e-6 (the mean over 3 values, one
+  // node), above the list's 1e-6.
+  r = run(6e-6);
+  EXPECT_EQ(r.status, study::SuiteResult::Status::Differs);
+  EXPECT_NEAR(r.sofaError, 2e-6, 1e-9);
+  EXPECT_NEAR(r.maxDistance, 6e-6, 1e-9);
+  // A scene that needs a component is reported as such.
+  write(dir / "examples/A/fall.scn", "<Node name=\"root\"><WarpDriveForceField/></Node>");
+  r = run(0);
+  EXPECT_EQ(r.status, study::SuiteResult::Status::Needs);
+  EXPECT_EQ(r.detail, "WarpDriveForceField");
+}
+
+TEST(SofaSuite, SofasRegressionScenesThatPassStayPassing) {
+  const std::string examples = std::string(VISCERA_SHARED_DIR) + "/data/sofa-suite/examples";
+  if (!fs::is_directory(examples)) GTEST_SKIP() << "no SOFA suite at " << examples;
+  const auto list = study::readRegressionList(examples + "/RegressionStateScenes.regression-tests",
+                                              std::string(VISCERA_SHARED_DIR) + "/data/sofa-suite/regression");
+  int run = 0;
+  for (const auto& e : list.entries) {
+    if (e.scene.find("MatrixAssembly_") == std::string::npos &&
+        e.scene.find("TetrahedralCorotationalFEMForceField.scn") == std::string::npos &&
+        e.scene.find("TetrahedronFEMForceField_assemble.scn") == std::string::npos)
+      continue;
+    const auto r = study::runRegressionScene(list, e, examples);
+    EXPECT_EQ(r.status, study::SuiteResult::Status::Passed) << e.scene << ": " << r.detail << " error " << r.sofaError;
+    ++run;
+  }
+  EXPECT_EQ(run, 7);
+}
