@@ -47,7 +47,11 @@ bool isCosmeticAttribute(const std::string& name) {
                                 // SOFA: texture seams and materials of OBJ files, sub-elements a
                                 // loader lists for drawing, stress and bounding-box outputs, threads
                                 "handleSeams", "loadMaterial", "createSubelements", "computeVonMisesStress",
-                                "computeBoundingBox", "multiThreadSimulation", "multithreading"};
+                                "computeBoundingBox", "multiThreadSimulation", "multithreading",
+                                // SOFA: how element loops are run (sequenced or parallel)
+                                "computeForceStrategy", "computeForceDerivStrategy",
+                                // SOFA: the matrix storage a linear solver uses, and its threading
+                                "linearSystem", "parallelInverseProduct"};
   for (const char* e : exact)
     if (name == e) return true;
   return name.rfind("draw", 0) == 0 || name.rfind("show", 0) == 0;

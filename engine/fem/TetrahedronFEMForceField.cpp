@@ -1,5 +1,6 @@
 #include <Eigen/Dense>
 #include "engine/fem/TetrahedronFEMForceField.h"
+#include "engine/fem/HexahedronFEMForceField.h"
 #include "io/scene/InputCache.h"
 
 #include <stdexcept>
@@ -18,9 +19,11 @@ using fem::Mat34;
 
 void TetrahedronFEMForceField::init() {
   state_ = &contextState(*this);
-  const std::string& m = attrs_.str("method");
+  // SOFA's element force fields fix the method by their type (LinearSmallStrain: small;
+  // Corotational: its rotationMethod, a polar decomposition).
+  const std::string m = spec().find("method") ? attrs_.str("method") : spec().find("rotationMethod") ? "polar" : "small";
   method_ = m == "small" ? fem::Method::Small : m == "polar" ? fem::Method::Polar : fem::Method::Large;
-  exact_ = attrs_.boolean("exactTangent");
+  exact_ = spec().find("exactTangent") && attrs_.boolean("exactTangent");
   tets_ = elementTetrahedra(contextTopology(*this));
   const int n = state_->size();
   for (int e = 0; e < tets_.cols(); ++e)
@@ -198,6 +201,34 @@ void registerTetrahedronFEM(Registry& r) {
   s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
   s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronFEMForceField>(c); };
   r.add(std::move(s));
+
+  // SOFA's element force fields (Sofa.Component.SolidMechanics.FEM.Elastic) on tetrahedra: the
+  // same elements with the method fixed by the type.
+  for (const char* name : {"LinearSmallStrainFEMForceField", "CorotationalFEMForceField"}) {
+    const bool corotational = std::string(name) == "CorotationalFEMForceField";
+    ComponentSpec e;
+    e.name = name;
+    e.category = "forcefield";
+    e.doc = corotational ? "SOFA's corotational element force field: on tetrahedra, TetrahedronFEMForceField with the "
+                           "element rotation from the polar decomposition (method=polar); on hexahedra, trilinear "
+                           "elements turned by the polar decomposition of sum (x_i - c)(X_i - C)^T."
+                         : "SOFA's linear small-strain element force field: TetrahedronFEMForceField with method=small on "
+                           "tetrahedra, linear trilinear elements on hexahedra.";
+    e.add(AttrSpec::choice("template", {"Vec3,Tetrahedron", "Vec3d,Tetrahedron", "Vec3,Hexahedron", "Vec3d,Hexahedron"})
+              .def("Vec3,Tetrahedron")
+              .help("the element type"));
+    e.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per element"));
+    e.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
+    if (corotational)
+      e.add(AttrSpec::choice("rotationMethod", {"polar"}).def("polar").help("the element rotation: the polar decomposition (SOFA's stable variant agrees for elements that are not inverted)"));
+    e.add(AttrSpec::link("topology").help("the topology with the elements (default: the nearest in the node or above)"));
+    e.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node or above)"));
+    e.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      if (c.attrs().str("template").find("Hexahedron") != std::string::npos) return makeHexahedronElementFEM(c);
+      return std::make_unique<TetrahedronFEMForceField>(c);
+    };
+    r.add(std::move(e));
+  }
 }
 
 }  // namespace viscera

@@ -86,13 +86,78 @@ class RigidMass : public Component {
   }
 };
 
+// A mass matrix assembled from element matrices: M_e (k x k scalars, times the 3 x 3 identity)
+// over each element's k nodes. Its rows summed are the lumped masses.
+class ElementMassMatrix {
+ public:
+  // Elements as columns of node indices (4 for tetrahedra, 8 for hexahedra), one k x k matrix each.
+  void set(Eigen::MatrixXi elements, std::vector<Eigen::MatrixXd> matrices) {
+    elements_ = std::move(elements);
+    matrices_ = std::move(matrices);
+  }
+  Eigen::VectorXd rowSums(int nodes) const {
+    Eigen::VectorXd m = Eigen::VectorXd::Zero(nodes);
+    for (int e = 0; e < elements_.cols(); ++e)
+      for (int i = 0; i < elements_.rows(); ++i) m[elements_(i, e)] += matrices_[e].row(i).sum();
+    return m;
+  }
+  void pattern(std::vector<std::pair<int, int>>& pairs) const {
+    for (int e = 0; e < elements_.cols(); ++e)
+      for (int i = 0; i < elements_.rows(); ++i)
+        for (int j = i + 1; j < elements_.rows(); ++j) pairs.push_back({elements_(i, e), elements_(j, e)});
+  }
+  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {
+    for (int e = 0; e < elements_.cols(); ++e)
+      for (int i = 0; i < elements_.rows(); ++i) {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (int j = 0; j < elements_.rows(); ++j) sum += matrices_[e](i, j) * dx.col(elements_(j, e));
+        out.col(elements_(i, e)) += factor * sum;
+      }
+  }
+  void addTo(BlockSparseMatrix& A, double factor) const {
+    for (int e = 0; e < elements_.cols(); ++e)
+      for (int i = 0; i < elements_.rows(); ++i)
+        for (int j = 0; j < elements_.rows(); ++j) {
+          const int slot = A.slot(elements_(i, e), elements_(j, e));
+          if (slot < 0) throw std::logic_error("mass matrix: the matrix pattern lacks the mass's node pairs");
+          A.block(slot).diagonal().array() += factor * matrices_[e](i, j);
+        }
+  }
+
+ private:
+  Eigen::MatrixXi elements_;
+  std::vector<Eigen::MatrixXd> matrices_;
+};
+
+// A lumped mass that may also carry the consistent matrix whose rows it sums.
+class MatrixMass : public LumpedMass {
+ public:
+  using LumpedMass::LumpedMass;
+  bool consistent() const override { return consistent_; }
+  void massPattern(std::vector<std::pair<int, int>>& pairs) const override { matrix_.pattern(pairs); }
+  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const override {
+    matrix_.addMdx(dx, out, factor);
+  }
+  void addMassMatrix(BlockSparseMatrix& A, double factor) const override { matrix_.addTo(A, factor); }
+
+ protected:
+  bool consistent_ = false;
+  ElementMassMatrix matrix_;
+};
+
+double tetVolume(const Eigen::Matrix3Xd& X, const TetList& T, int e) {
+  Eigen::Matrix3d E;
+  E << X.col(T(1, e)) - X.col(T(0, e)), X.col(T(2, e)) - X.col(T(0, e)), X.col(T(3, e)) - X.col(T(0, e));
+  return std::abs(E.determinant()) / 6.0;
+}
+
 // DiagonalMass and lumped MeshMatrixMass give the same nodal masses on tetrahedra. MeshMatrixMass
 // without lumping (SOFA's default) keeps the consistent matrix of linear tetrahedra,
 // M_e = rho V_e / 20 (1 + delta_ij) I_3 over the element's four nodes, whose rows sum to the
 // lumped masses (a quarter of rho V_e per node).
-class TetLumpedMass : public LumpedMass {
+class TetLumpedMass : public MatrixMass {
  public:
-  using LumpedMass::LumpedMass;
+  using MatrixMass::MatrixMass;
   void init() override {
     consistent_ = spec().find("lumping") && !attrs_.boolean("lumping");
     state_ = &contextState(*this);
@@ -112,47 +177,122 @@ class TetLumpedMass : public LumpedMass {
     }
     m_ = vol * density;
     if (!consistent_) return;
-    tets_ = topo.tetrahedra();
-    elementMass_.resize(tets_.cols());
+    const TetList& T = topo.tetrahedra();
+    const Eigen::Matrix4d unit = (Eigen::Matrix4d::Ones() + Eigen::Matrix4d::Identity()) / 20.0;
+    std::vector<Eigen::MatrixXd> Me(T.cols());
+    for (int e = 0; e < T.cols(); ++e) Me[e] = density * tetVolume(state_->x0, T, e) * unit;
+    matrix_.set(T, std::move(Me));
+  }
+};
+
+// SOFA's NodalMassDensity: the density of a body, one value or one per node, read by FEMMass in
+// the same node or below.
+class NodalMassDensity : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    const auto& v = attrs_.reals("property");
+    density = Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+  }
+  Eigen::VectorXd density;
+};
+
+// SOFA's FEMMass: the consistent mass matrix of the elements, M_ij = int rho N_i N_j dV with the
+// element's shape functions, by Gauss quadrature (4 points on a tetrahedron, 2 x 2 x 2 on a
+// hexahedron: exact for a uniform density on tetrahedra and parallelepipeds). A per-node density
+// is interpolated with the shape functions.
+class FEMMass : public MatrixMass {
+ public:
+  using MatrixMass::MatrixMass;
+  void init() override {
+    consistent_ = true;
+    state_ = &contextState(*this);
+    NodalMassDensity* rho = node().findInContext<NodalMassDensity>();
+    if (!rho) throw error("needs a NodalMassDensity in its node or above (the density of the body)");
+    scene().initComponent(*rho);
+    const int n = state_->size();
+    if (rho->density.size() != 1 && rho->density.size() != n)
+      throw rho->error("property", "has " + std::to_string(rho->density.size()) + " values; give one, or one per node (" +
+                                       std::to_string(n) + ")");
+    auto densityAt = [&](const Eigen::VectorXi& nodes, const Eigen::VectorXd& N) {
+      if (rho->density.size() == 1) return rho->density[0];
+      double d = 0;
+      for (int k = 0; k < nodes.size(); ++k) d += N[k] * rho->density[nodes[k]];
+      return d;
+    };
+    const bool hexa = attrs_.str("template").find("Hexahedron") != std::string::npos;
+    Topology& topo = hexa ? hexahedralTopology() : contextTopology(*this, "topology", false);
     const Eigen::Matrix3Xd& X = state_->x0;
-    for (int e = 0; e < tets_.cols(); ++e) {
-      Eigen::Matrix3d E;
-      E << X.col(tets_(1, e)) - X.col(tets_(0, e)), X.col(tets_(2, e)) - X.col(tets_(0, e)),
-          X.col(tets_(3, e)) - X.col(tets_(0, e));
-      elementMass_[e] = density * std::abs(E.determinant()) / 6.0;
-    }
-  }
-  bool consistent() const override { return consistent_; }
-  void massPattern(std::vector<std::pair<int, int>>& pairs) const override {
-    for (int e = 0; e < tets_.cols(); ++e)
-      for (int i = 0; i < 4; ++i)
-        for (int j = i + 1; j < 4; ++j) pairs.push_back({tets_(i, e), tets_(j, e)});
-  }
-  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const override {
-    for (int e = 0; e < tets_.cols(); ++e) {
-      const double off = factor * elementMass_[e] / 20.0;
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      for (int j = 0; j < 4; ++j) sum += dx.col(tets_(j, e));
-      // (M_e dx)_i = m/20 (sum_j dx_j + dx_i)
-      for (int i = 0; i < 4; ++i) out.col(tets_(i, e)) += off * (sum + dx.col(tets_(i, e)));
-    }
-  }
-  void addMassMatrix(BlockSparseMatrix& A, double factor) const override {
-    for (int e = 0; e < tets_.cols(); ++e) {
-      const double off = factor * elementMass_[e] / 20.0;
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) {
-          const int slot = A.slot(tets_(i, e), tets_(j, e));
-          if (slot < 0) throw std::logic_error("MeshMatrixMass: the matrix pattern lacks the mass's node pairs");
-          A.block(slot).diagonal().array() += i == j ? 2 * off : off;
+    Eigen::MatrixXi elements;
+    std::vector<Eigen::MatrixXd> Me;
+    if (hexa) {
+      const HexList& H = topo.hexahedra();
+      if (H.empty()) throw error("template", "Vec3,Hexahedron needs a topology with hexahedra");
+      elements.resize(8, static_cast<Eigen::Index>(H.size()));
+      // Corner signs of the reference cube, in SOFA's (and RegularGridTopology's) node order.
+      static const int sign[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+                                     {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
+      const double g = 1.0 / std::sqrt(3.0);
+      for (size_t e = 0; e < H.size(); ++e) {
+        Eigen::VectorXi nodes(8);
+        for (int k = 0; k < 8; ++k) nodes[k] = elements(k, e) = checkedNode(H[e][k], n);
+        Eigen::MatrixXd M = Eigen::MatrixXd::Zero(8, 8);
+        for (int q = 0; q < 8; ++q) {
+          const Eigen::Vector3d xi(sign[q][0] * g, sign[q][1] * g, sign[q][2] * g);
+          Eigen::VectorXd N(8);
+          Eigen::Matrix<double, 8, 3> dN;
+          for (int k = 0; k < 8; ++k) {
+            const double a = 1 + sign[k][0] * xi[0], b = 1 + sign[k][1] * xi[1], c = 1 + sign[k][2] * xi[2];
+            N[k] = a * b * c / 8;
+            dN.row(k) << sign[k][0] * b * c / 8, sign[k][1] * a * c / 8, sign[k][2] * a * b / 8;
+          }
+          Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+          for (int k = 0; k < 8; ++k) J += X.col(nodes[k]) * dN.row(k);
+          const double w = std::abs(J.determinant()) * densityAt(nodes, N);  // Gauss weights are 1
+          M += w * N * N.transpose();
         }
+        Me.push_back(M);
+      }
+    } else {
+      const TetList& T = topo.tetrahedra();
+      if (T.cols() == 0) throw error("template", "Vec3,Tetrahedron needs a topology with tetrahedra");
+      elements = T;
+      // The 4-point rule of degree 2: barycentric (a, b, b, b) and permutations, weight V / 4.
+      const double a = 0.5854101966249685, b = 0.1381966011250105;
+      for (int e = 0; e < T.cols(); ++e) {
+        Eigen::VectorXi nodes(4);
+        for (int k = 0; k < 4; ++k) nodes[k] = checkedNode(T(k, e), n);
+        const double V = tetVolume(X, T, e);
+        Eigen::MatrixXd M = Eigen::MatrixXd::Zero(4, 4);
+        for (int q = 0; q < 4; ++q) {
+          Eigen::VectorXd N = Eigen::VectorXd::Constant(4, b);
+          N[q] = a;
+          M += V / 4 * densityAt(nodes, N) * N * N.transpose();
+        }
+        Me.push_back(M);
+      }
     }
+    matrix_.set(elements, std::move(Me));
+    m_ = matrix_.rowSums(n);
   }
 
  private:
-  bool consistent_ = false;
-  TetList tets_;
-  std::vector<double> elementMass_;
+  // The `topology` link, else the nearest topology in the context that has hexahedra.
+  Topology& hexahedralTopology() {
+    if (attrs_.isSet("topology")) return contextTopology(*this, "topology", true);
+    for (const Node* nd = &node(); nd; nd = nd->parent())
+      for (auto it = nd->components().rbegin(); it != nd->components().rend(); ++it)
+        if (auto* t = dynamic_cast<Topology*>(it->get())) {
+          scene().initComponent(**it);
+          if (!t->hexahedra().empty()) return *t;
+        }
+    throw error("template", "Vec3,Hexahedron needs a topology with hexahedra in its node or above");
+  }
+  int checkedNode(int i, int n) const {
+    if (i < 0 || i >= n)
+      throw error("an element refers to node " + std::to_string(i) + ", but the MechanicalObject has " + std::to_string(n) + " nodes");
+    return i;
+  }
 };
 
 AttrSpec massLink() { return AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"); }
@@ -194,6 +334,30 @@ void registerMasses(Registry& r) {
     s.add(AttrSpec::link("topology").help("the tetrahedral topology (default: the one in the node)"));
     s.add(massLink());
     s.factory = [](BuildContext& c) { return std::make_unique<TetLumpedMass>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "NodalMassDensity";
+    s.category = "mass";
+    s.doc = "The density of a body (mass per volume), one value or one per node, for FEMMass in the same node or below.";
+    s.add(AttrSpec::reals("property").req().above(0).unit(Dimension::density()).help("density: one value, or one per node"));
+    s.factory = [](BuildContext& c) { return std::make_unique<NodalMassDensity>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "FEMMass";
+    s.category = "mass";
+    s.doc = "Consistent mass matrix of the elements, M_ij = integral of rho N_i N_j with the linear tetrahedron's or "
+            "trilinear hexahedron's shape functions (Gauss quadrature: 4 points, 2 x 2 x 2), the density from the "
+            "NodalMassDensity above. Applies gravity.";
+    s.add(AttrSpec::choice("template", {"Vec3,Tetrahedron", "Vec3d,Tetrahedron", "Vec3,Hexahedron", "Vec3d,Hexahedron"})
+              .def("Vec3,Tetrahedron")
+              .help("the element type"));
+    s.add(AttrSpec::link("topology").help("the topology with the elements (default: the one in the node or above)"));
+    s.add(massLink());
+    s.factory = [](BuildContext& c) { return std::make_unique<FEMMass>(c); };
     r.add(std::move(s));
   }
 }

@@ -81,9 +81,14 @@ void registerLinearSolvers(Registry& r) {
   {
     ComponentSpec s;
     s.name = "SparseLDLSolver";
-    s.aliases = {"SparseCholeskySolver", "CholmodSolver"};
+    // SOFA's other direct solvers give the same solution of the step's symmetric positive definite
+    // system (up to round-off), so they map to this one.
+    s.aliases = {"SparseCholeskySolver", "CholmodSolver", "EigenSimplicialLDLT", "EigenSimplicialLLT", "EigenSparseLU",
+                 "EigenSparseQR", "AsyncSparseLDLSolver"};
     s.category = "solver";
-    s.doc = "Direct sparse LDL^T through SuiteSparse CHOLMOD; the symbolic analysis is computed once and reused.";
+    s.doc = "Direct sparse LDL^T through SuiteSparse CHOLMOD; the symbolic analysis is computed once and reused. "
+            "SOFA's EigenSimplicialLDLT/LLT, EigenSparseLU/QR and AsyncSparseLDLSolver solve the same symmetric "
+            "positive definite system and map to it.";
     s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseLDLSolver>(c); };
     r.add(std::move(s));
