@@ -109,7 +109,7 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     } else {
       method_ = spec().find("rotationMethod") ? HexMethod::CentroidPolar : HexMethod::Small;
     }
-    Topology& topo = hexahedralTopology();
+    Topology& topo = contextHexahedra(*this);
     hexa_ = topo.hexahedra();
     const int n = state_->size();
     for (size_t e = 0; e < hexa_.size(); ++e)
@@ -212,23 +212,7 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     }
     return Eigen::Matrix3d::Identity();
   }
-  // The `topology` link, else the nearest topology in the context with hexahedra.
-  Topology& hexahedralTopology() {
-    if (attrs_.isSet("topology")) {
-      auto* t = dynamic_cast<Topology*>(linkedComponent("topology"));
-      if (!t) throw error("topology", "does not link to a topology");
-      scene().initComponent(dynamic_cast<Component&>(*t));
-      if (t->hexahedra().empty()) throw error("topology", "links to a topology without hexahedra");
-      return *t;
-    }
-    for (const Node* nd = &node(); nd; nd = nd->parent())
-      for (auto it = nd->components().rbegin(); it != nd->components().rend(); ++it)
-        if (auto* t = dynamic_cast<Topology*>(it->get())) {
-          scene().initComponent(**it);
-          if (!t->hexahedra().empty()) return *t;
-        }
-    throw error("no topology with hexahedra in its node or above (a RegularGridTopology, or a loader with hexahedra)");
-  }
+
 
   MechanicalObject* state_ = nullptr;
   HexMethod method_ = HexMethod::Large;

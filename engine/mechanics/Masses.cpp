@@ -221,7 +221,7 @@ class FEMMass : public MatrixMass {
       return d;
     };
     const bool hexa = attrs_.str("template").find("Hexahedron") != std::string::npos;
-    Topology& topo = hexa ? hexahedralTopology() : contextTopology(*this, "topology", false);
+    Topology& topo = hexa ? contextHexahedra(*this) : contextTopology(*this, "topology", false);
     const Eigen::Matrix3Xd& X = state_->x0;
     Eigen::MatrixXi elements;
     std::vector<Eigen::MatrixXd> Me;
@@ -277,17 +277,6 @@ class FEMMass : public MatrixMass {
   }
 
  private:
-  // The `topology` link, else the nearest topology in the context that has hexahedra.
-  Topology& hexahedralTopology() {
-    if (attrs_.isSet("topology")) return contextTopology(*this, "topology", true);
-    for (const Node* nd = &node(); nd; nd = nd->parent())
-      for (auto it = nd->components().rbegin(); it != nd->components().rend(); ++it)
-        if (auto* t = dynamic_cast<Topology*>(it->get())) {
-          scene().initComponent(**it);
-          if (!t->hexahedra().empty()) return *t;
-        }
-    throw error("template", "Vec3,Hexahedron needs a topology with hexahedra in its node or above");
-  }
   int checkedNode(int i, int n) const {
     if (i < 0 || i >= n)
       throw error("an element refers to node " + std::to_string(i) + ", but the MechanicalObject has " + std::to_string(n) + " nodes");

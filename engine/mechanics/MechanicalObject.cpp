@@ -140,6 +140,23 @@ Topology& contextTopology(Component& c, const std::string& attr, bool allowHexa)
   throw c.error("no topology with tetrahedra in its node or above");
 }
 
+Topology& contextHexahedra(Component& c, const std::string& attr) {
+  if (c.spec().find(attr) && c.attrs().isSet(attr)) {
+    auto* t = dynamic_cast<Topology*>(c.linkedComponent(attr));
+    if (!t) throw c.error(attr, "does not link to a topology");
+    c.scene().initComponent(dynamic_cast<Component&>(*t));
+    if (t->hexahedra().empty()) throw c.error(attr, "links to a topology without hexahedra");
+    return *t;
+  }
+  for (const Node* n = &c.node(); n; n = n->parent())
+    for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
+      if (auto* t = dynamic_cast<Topology*>(it->get())) {
+        c.scene().initComponent(**it);
+        if (!t->hexahedra().empty()) return *t;
+      }
+  throw c.error("no topology with hexahedra in its node or above (a RegularGridTopology, or a loader with hexahedra)");
+}
+
 void registerMechanicalObject(Registry& r) {
   ComponentSpec s;
   s.name = "MechanicalObject";

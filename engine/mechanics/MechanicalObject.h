@@ -47,5 +47,8 @@ MechanicalObject& contextState(Component& c, const std::string& linkAttr = "msta
 // The topology a component uses: its link `attr` if set, else the last topology in its context
 // that has tetrahedra (or hexahedra if `allowHexa`). Throws if there is none.
 Topology& contextTopology(Component& c, const std::string& attr = "topology", bool allowHexa = true);
+// The topology with hexahedra a component uses: its link `attr` if set, else the nearest topology in
+// its context that has hexahedra. Throws if there is none.
+Topology& contextHexahedra(Component& c, const std::string& attr = "topology");
 
 }  // namespace viscera
