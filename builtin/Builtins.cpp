@@ -7,6 +7,7 @@ void registerMechanicalObject(Registry&);
 void registerMasses(Registry&);
 void registerConstraints(Registry&);
 void registerRestShapeSprings(Registry&);
+void registerSprings(Registry&);
 void registerRegionEngines(Registry&);
 void registerTopologies(Registry&);
 void registerTetrahedronFEM(Registry&);
@@ -28,6 +29,7 @@ void registerBuiltins(Registry& r) {
   registerMasses(r);
   registerConstraints(r);
   registerRestShapeSprings(r);
+  registerSprings(r);
   registerRegionEngines(r);
   registerTopologies(r);
   registerTetrahedronFEM(r);

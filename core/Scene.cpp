@@ -13,6 +13,9 @@ namespace {
 // Components without their own `template` attribute take the template of the state they act on;
 // they check at init that it is one they support.
 bool isTemplateOk(const std::string& t) {
+  // SOFA writes a pair for components with a second type ("Vec3,Vec3": state and geometry).
+  if (const size_t comma = t.find(','); comma != std::string::npos)
+    return isTemplateOk(t.substr(0, comma)) && isTemplateOk(t.substr(comma + 1));
   return t == "Vec3d" || t == "Vec3" || t == "Vec3f" || t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f";
 }
 

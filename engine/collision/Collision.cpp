@@ -1,4 +1,5 @@
 #include "engine/collision/Collision.h"
+#include "engine/topology/GridSplit.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/InputCache.h"
 
@@ -51,10 +52,9 @@ struct SurfaceTopology {
   std::vector<std::vector<int>> edgeTris, vertexNeighbours;
 };
 
-SurfaceTopology surfaceTopology(const TetList& T, const Eigen::Matrix3Xd& X) {
+// The surface's edges and neighbours from its outward boundary triangles.
+SurfaceTopology surfaceTopology(const io::TriangleList& boundary, const Eigen::Matrix3Xd& X) {
   SurfaceTopology s;
-  // Boundary faces: those that belong to one tetrahedron, oriented away from its fourth node.
-  const io::TriangleList boundary = io::boundaryTriangles(T, X);
   for (Eigen::Index t = 0; t < boundary.cols(); ++t) s.tris.push_back({boundary(0, t), boundary(1, t), boundary(2, t)});
   std::map<std::pair<int, int>, int> edgeId;
   s.triEdges.resize(s.tris.size());
@@ -87,17 +87,22 @@ void SurfaceCollisionModel::init() {
   if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
   state_ = &contextState(*this);
   stiffness_ = attrs_.isSet("contactStiffness") ? attrs_.real("contactStiffness") : 0.0;
-  Topology& topo = contextTopology(*this, "topology", false);
-  const TetList& T = topo.tetrahedra();
+  // The boundary of the tetrahedra in the context or, failing them, of its hexahedra (a grid).
   const Eigen::Matrix3Xd& X = state_->x0;
-  for (Eigen::Index e = 0; e < T.cols(); ++e)
-    for (int k = 0; k < 4; ++k)
-      if (T(k, e) < 0 || T(k, e) >= X.cols())
-        throw error("tetrahedron " + std::to_string(e) + " refers to node " + std::to_string(T(k, e)) +
-                    " but the MechanicalObject has " + std::to_string(X.cols()) + " nodes");
+  io::TriangleList boundary;
+  if (Topology* tets = nearestTopology(true)) {
+    const TetList& T = tets->tetrahedra();
+    checkNodes(T.data(), T.size(), X.cols());
+    boundary = io::boundaryTriangles(T, X);
+  } else if (Topology* hexa = nearestTopology(false)) {
+    for (const auto& h : hexa->hexahedra()) checkNodes(h.data(), 8, X.cols());
+    boundary = hexahedronBoundaryTriangles(hexa->hexahedra());
+  } else {
+    throw error("no topology with tetrahedra or hexahedra in its node or above");
+  }
   // Shared by every scene variant with the same mesh (input cache).
-  const auto surface = io::cachedDerived<SurfaceTopology>("collision surface", io::keyBytes(T) + io::keyBytes(X),
-                                                       [&] { return surfaceTopology(T, X); });
+  const auto surface = io::cachedDerived<SurfaceTopology>("collision surface", io::keyBytes(boundary) + io::keyBytes(X),
+                                                       [&] { return surfaceTopology(boundary, X); });
   if (surface->tris.empty()) throw error("the topology has no boundary triangles");
   tris_ = surface->tris;
   verts_ = surface->verts;
@@ -108,6 +113,29 @@ void SurfaceCollisionModel::init() {
   bvh_ = std::make_shared<Bvh>();
   fitBoxes(X);
   bvh_->tree.build(bvh_->boxes);
+}
+
+Topology* SurfaceCollisionModel::nearestTopology(bool tetrahedra) {
+  if (attrs_.isSet("topology")) {
+    auto* t = dynamic_cast<Topology*>(linkedComponent("topology"));
+    if (!t) throw error("topology", "does not link to a topology");
+    scene().initComponent(dynamic_cast<Component&>(*t));
+    return (tetrahedra ? t->tetrahedra().cols() > 0 : !t->hexahedra().empty()) ? t : nullptr;
+  }
+  for (const Node* n = &node(); n; n = n->parent())
+    for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
+      if (auto* t = dynamic_cast<Topology*>(it->get())) {
+        scene().initComponent(**it);
+        if (tetrahedra ? t->tetrahedra().cols() > 0 : !t->hexahedra().empty()) return t;
+      }
+  return nullptr;
+}
+
+void SurfaceCollisionModel::checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const {
+  for (Eigen::Index i = 0; i < count; ++i)
+    if (nodes[i] < 0 || nodes[i] >= size)
+      throw error("an element refers to node " + std::to_string(nodes[i]) + " but the MechanicalObject has " +
+                  std::to_string(size) + " nodes");
 }
 
 void SurfaceCollisionModel::fitBoxes(const Eigen::Matrix3Xd& x) {

@@ -120,6 +120,9 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   struct Bvh;
   // One box per primitive (triangle, or vertex for point models) at positions x.
   void fitBoxes(const Eigen::Matrix3Xd& x);
+  // The `topology` link or the nearest topology in the context with tetrahedra (or hexahedra).
+  Topology* nearestTopology(bool tetrahedra);
+  void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
   MechanicalObject* state_ = nullptr;
   Kind kind_ = Kind::Triangles;
   bool active_ = true;

@@ -46,7 +46,7 @@ void registerCollision(Registry& r) {
     s.category = "collision";
     s.doc = d[1];
     s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("penalty stiffness per contact (force per length); required by the penalty response"));
-    s.add(AttrSpec::link("topology").help("the tetrahedral topology (default: the one in the node)"));
+    s.add(AttrSpec::link("topology").help("the topology whose boundary is the surface: tetrahedra, or hexahedra (default: the nearest in the node or above)"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.add(AttrSpec::boolean("bothSide").def("false").help("accepted for SOFA scenes; the outer side is used"));
     addSofaModelFlags(s);

@@ -1,5 +1,9 @@
 #include "engine/topology/GridSplit.h"
 
+#include <algorithm>
+#include <array>
+#include <map>
+
 #include <utility>
 
 namespace viscera {
@@ -66,6 +70,29 @@ TetList elementTetrahedra(const Topology& topo) {
   auto cells = topo.gridCells();
   if (cells[0] == 0) cells = {2, 1, 1};
   return splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
+}
+
+Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa) {
+  // Outward faces of a hexahedron whose nodes are (0,0,0) (1,0,0) (1,1,0) (0,1,0), then z = 1.
+  static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+  std::map<std::array<int, 4>, std::pair<int, std::array<int, 4>>> seen;  // sorted corners -> count, face
+  for (const auto& h : hexa)
+    for (const auto& f : faces) {
+      std::array<int, 4> q{h[f[0]], h[f[1]], h[f[2]], h[f[3]]}, key = q;
+      std::sort(key.begin(), key.end());
+      auto [it, fresh] = seen.try_emplace(key, 0, q);
+      ++it->second.first;
+    }
+  std::vector<std::array<int, 4>> boundary;
+  for (const auto& [key, entry] : seen)
+    if (entry.first == 1) boundary.push_back(entry.second);
+  Eigen::Matrix<int, 3, Eigen::Dynamic> tris(3, 2 * boundary.size());
+  for (size_t i = 0; i < boundary.size(); ++i) {
+    const auto& q = boundary[i];
+    tris.col(2 * i) << q[0], q[1], q[2];
+    tris.col(2 * i + 1) << q[0], q[2], q[3];
+  }
+  return tris;
 }
 
 }  // namespace viscera

@@ -18,6 +18,10 @@ HexList gridHexahedra(const std::array<int, 3>& n);
 // SOFA's TetrahedronFEMForceField does when placed directly on hexahedra).
 TetList splitHexahedra(const HexList& hexa, int nx, int ny, bool swapping, bool fixOrientation = true);
 
+// The boundary faces of hexahedra in SOFA's node order (faces that belong to one hexahedron),
+// outward, each quad split into two triangles (0 1 2, 0 2 3): the surface of a grid.
+Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa);
+
 // The tetrahedra a TetrahedronFEMForceField builds on `topo`: its tetrahedra, or, directly on a
 // grid, SOFA's split of its hexahedra (straight vertex order, as SOFA's force field does). Engines
 // that select elements (SphereROI) use the same list, so that element indices agree.

@@ -111,6 +111,89 @@ class TetrahedronSetTopologyContainer : public Component, public Topology {
   bool filled_ = false;
 };
 
+// Triangles of a surface: from a loader (`src`), explicit lists, or Tetra2TriangleTopologicalMapping
+// (the boundary of a tetrahedral body, SOFA's collision surface). It carries no tetrahedra, so
+// components that need a volume look past it.
+class TriangleSetTopologyContainer : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    for (auto* m : scene().all<TopologyFiller>())
+      if (m->fills(*this)) scene().initComponent(dynamic_cast<Component&>(*m));
+    if (filled_) return;
+    if (attrs_.isSet("src")) {
+      auto* c = linkedComponent("src");
+      FieldValue p, t;
+      if (!c || !c->field("position", p)) throw error("src", "does not link to a loader or topology with positions");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.values.data(), 3, static_cast<Eigen::Index>(p.values.size() / 3));
+      if (c->field("triangles", t)) setTriangles(t.values);
+    }
+    if (attrs_.isSet("position")) {
+      auto p = linkedReals("position");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+    }
+    if (attrs_.isSet("triangles")) {
+      auto t = linkedInts("triangles");
+      setTriangles(std::vector<double>(t.begin(), t.end()));
+    }
+    for (Eigen::Index i = 0; i < tris_.size(); ++i)
+      if (points_.cols() > 0 && (tris_.data()[i] < 0 || tris_.data()[i] >= points_.cols()))
+        throw error("triangles", "refer to node " + std::to_string(tris_.data()[i]) + ", but there are " +
+                                     std::to_string(points_.cols()) + " points");
+  }
+  void fill(const Eigen::Matrix3Xd& points, const io::TriangleList& tris) {
+    points_ = points;
+    tris_ = tris;
+    filled_ = true;
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "triangles") out.values.assign(tris_.data(), tris_.data() + tris_.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  void setTriangles(const std::vector<double>& v) {
+    tris_.resize(3, static_cast<Eigen::Index>(v.size() / 3));
+    for (size_t i = 0; i < 3 * static_cast<size_t>(tris_.cols()); ++i) tris_.data()[i] = static_cast<int>(v[i]);
+  }
+  Eigen::Matrix3Xd points_;
+  io::TriangleList tris_;
+  bool filled_ = false;
+};
+
+// Writes the boundary triangles of a tetrahedral topology (outward, as io::boundaryTriangles) into
+// a TriangleSetTopologyContainer: SOFA's way of giving a volume its collision or visual surface.
+class Tetra2TriangleTopologicalMapping : public Component, public TopologyFiller {
+ public:
+  using Component::Component;
+  bool fills(const Component& c) const override {
+    const AttrValue& o = attrs_.get("output");
+    return o.set && &scene().resolve(*this, o.text, o.loc, "Tetra2TriangleTopologicalMapping.output") == &c;
+  }
+  void init() override {
+    auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
+    if (!in) throw error("input", "does not link to a topology");
+    scene().initComponent(dynamic_cast<Component&>(*in));
+    if (in->tetrahedra().cols() == 0) throw error("input", "links to a topology without tetrahedra");
+    const AttrValue& o = attrs_.get("output");
+    auto* out = dynamic_cast<TriangleSetTopologyContainer*>(&scene().resolve(*this, o.text, o.loc, "Tetra2TriangleTopologicalMapping.output"));
+    if (!out) throw error("output", "does not link to a TriangleSetTopologyContainer");
+    // A container filled by a mapping holds elements only: the points are the body's rest positions.
+    const Eigen::Matrix3Xd points = in->points().cols() > 0 ? in->points() : contextState(*this).x0;
+    const TetList& T = in->tetrahedra();
+    if (T.maxCoeff() >= points.cols() || T.minCoeff() < 0)
+      throw error("input", "has tetrahedra that refer to node " + std::to_string(T.maxCoeff()) + ", but there are " +
+                               std::to_string(points.cols()) + " points");
+    io::TriangleList tris = io::boundaryTriangles(T, points);
+    if (attrs_.boolean("flipNormals")) tris.row(1).swap(tris.row(2));
+    out->fill(points, tris);
+  }
+};
+
 class Hexa2TetraTopologicalMapping : public Component, public TopologyFiller {
  public:
   using Component::Component;
@@ -221,6 +304,34 @@ void registerTopologies(Registry& r) {
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
     s.add(AttrSpec::ints("tetrahedra").multipleOf(4).atLeast(0).linked().help("node indices, four per tetrahedron"));
     s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "TriangleSetTopologyContainer";
+    s.aliases = {"TriangleSetTopology"};
+    s.category = "topology";
+    s.doc = "Holds surface triangles: from a loader (`src`), explicit lists, or a Tetra2TriangleTopologicalMapping writing "
+            "the boundary of a tetrahedral body to it (SOFA's collision and visual surface). It has no tetrahedra: "
+            "a collision model or force field in its node uses the volume above it.";
+    s.add(AttrSpec::link("src").help("a loader to take points and triangles from"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
+    s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("node indices, three per triangle"));
+    s.factory = [](BuildContext& c) { return std::make_unique<TriangleSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "Tetra2TriangleTopologicalMapping";
+    s.category = "topology";
+    s.doc = "Writes the boundary triangles of `input`'s tetrahedra (outward) into the TriangleSetTopologyContainer "
+            "`output`, with the same points.";
+    s.add(AttrSpec::link("input").req().help("topology with tetrahedra"));
+    s.add(AttrSpec::link("output").req().help("the TriangleSetTopologyContainer to fill"));
+    s.add(AttrSpec::boolean("flipNormals").def("false").help("reverse the orientation of the triangles (inward)"));
+    s.add(AttrSpec::boolean("noNewTriangles").def("false").help("accepted for SOFA scenes: the topology does not change here"));
+    s.add(AttrSpec::boolean("noInitialTriangles").def("false").help("accepted for SOFA scenes: the output holds the boundary only"));
+    s.factory = [](BuildContext& c) { return std::make_unique<Tetra2TriangleTopologicalMapping>(c); };
     r.add(std::move(s));
   }
   {

@@ -1,0 +1,163 @@
+// MeshSpringForceField (SOFA's): a spring on every node pair of the mesh's elements, with the rest
+// length of the pair at rest. Per spring between a and b, with u the unit vector from a to b and
+// d the length:  f_a = (ks (d - L0) + kd u.(v_b - v_a)) u,  f_b = -f_a.  The stiffness (SOFA's,
+// damping left out of the matrix as SOFA does): df_a/dx_b = J = (ks - t) u u^T + t I with
+// t = (ks (d - L0) + kd u.(v_b - v_a)) / d, and df_a/dx_a = -J.
+#include <Eigen/Dense>
+#include <set>
+
+#include "core/Registry.h"
+#include "core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "solvers/linear/BlockSparseMatrix.h"
+
+namespace viscera {
+
+namespace {
+
+struct Spring {
+  int a = 0, b = 0;
+  double ks = 0, kd = 0, rest = 0;
+};
+
+class MeshSpringForceField : public Component, public ForceField {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  void init() override {
+    state_ = &contextState(*this);
+    const Eigen::Matrix3Xd& X = state_->x0;
+    // The element kinds in SOFA's order: a pair keeps the stiffness of the first kind that lists it.
+    auto value = [&](const char* kind, const char* fallback) {
+      return attrs_.isSet(kind) ? attrs_.real(kind) : attrs_.isSet(fallback) ? attrs_.real(fallback) : 0.0;
+    };
+    std::set<std::pair<int, int>> seen;
+    auto add = [&](int a, int b, double ks, double kd) {
+      if (a == b) return;
+      if (!seen.insert({std::min(a, b), std::max(a, b)}).second) return;
+      springs_.push_back({a, b, ks, kd, (X.col(b) - X.col(a)).norm()});
+    };
+    Topology* tets = nullptr;
+    Topology* hexa = nullptr;
+    for (const Node* n = &node(); n && !tets && !hexa; n = n->parent())
+      for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
+        if (auto* t = dynamic_cast<Topology*>(it->get())) {
+          scene().initComponent(**it);
+          if (!tets && t->tetrahedra().cols() > 0) tets = t;
+          if (!hexa && !t->hexahedra().empty()) hexa = t;
+        }
+    if (!tets && !hexa) throw error("no topology with tetrahedra or hexahedra in its node or above");
+    const int n = state_->size();
+    auto check = [&](int i) {
+      if (i < 0 || i >= n) throw error("an element refers to node " + std::to_string(i) + ", but the MechanicalObject has " + std::to_string(n) + " nodes");
+      return i;
+    };
+    if (tets) {
+      // Every edge of a tetrahedron is an edge, a triangle side and a tetrahedron edge: it takes the
+      // first of those stiffnesses that is given.
+      const double ks = value("linesStiffness", "stiffness") != 0 ? value("linesStiffness", "stiffness")
+                        : value("trianglesStiffness", "stiffness") != 0 ? value("trianglesStiffness", "stiffness")
+                                                                         : value("tetrasStiffness", "stiffness");
+      const double kd = value("linesStiffness", "stiffness") != 0 ? value("linesDamping", "damping")
+                        : value("trianglesStiffness", "stiffness") != 0 ? value("trianglesDamping", "damping")
+                                                                         : value("tetrasDamping", "damping");
+      const TetList& T = tets->tetrahedra();
+      for (int e = 0; e < T.cols(); ++e)
+        for (int i = 0; i < 4; ++i)
+          for (int j = i + 1; j < 4; ++j) add(check(T(i, e)), check(T(j, e)), ks, kd);
+    } else {
+      // Hexahedra: the 12 edges (lines), then the face diagonals (quads), then the body
+      // diagonals (cubes: every pair of the 8 nodes).
+      static const int edges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6}, {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+      static const int faces[6][4] = {{0, 1, 2, 3}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+      const double lk = value("linesStiffness", "stiffness"), ld = value("linesDamping", "damping");
+      const double qk = value("quadsStiffness", "stiffness"), qd = value("quadsDamping", "damping");
+      const double ck = value("cubesStiffness", "stiffness"), cd = value("cubesDamping", "damping");
+      for (const auto& h : hexa->hexahedra()) {
+        for (int k : h) check(k);
+        if (lk != 0 || ld != 0)
+          for (const auto& e : edges) add(h[e[0]], h[e[1]], lk, ld);
+        if (qk != 0 || qd != 0)
+          for (const auto& f : faces)
+            for (int i = 0; i < 4; ++i)
+              for (int j = i + 1; j < 4; ++j) add(h[f[i]], h[f[j]], qk, qd);
+        if (ck != 0 || cd != 0)
+          for (int i = 0; i < 8; ++i)
+            for (int j = i + 1; j < 8; ++j) add(h[i], h[j], ck, cd);
+      }
+    }
+    for (const auto& s : springs_)
+      if (!(s.rest > 0)) throw error("two nodes of an element coincide at rest (nodes " + std::to_string(s.a) + " and " + std::to_string(s.b) + ")");
+    J_.assign(springs_.size(), Eigen::Matrix3d::Zero());
+  }
+  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override {
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = springs_[i];
+      Eigen::Vector3d u = x.col(s.b) - x.col(s.a);
+      const double d = u.norm();
+      if (!(d > 0)) {
+        J_[i].setZero();
+        continue;
+      }
+      u /= d;
+      const double intensity = s.ks * (d - s.rest) + s.kd * u.dot(v.col(s.b) - v.col(s.a));
+      f.col(s.a) += intensity * u;
+      f.col(s.b) -= intensity * u;
+      const double t = intensity / d;
+      J_[i] = (s.ks - t) * u * u.transpose() + t * Eigen::Matrix3d::Identity();
+    }
+  }
+  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Eigen::Vector3d d = kFactor * (J_[i] * (dx.col(springs_[i].b) - dx.col(springs_[i].a)));
+      df.col(springs_[i].a) += d;
+      df.col(springs_[i].b) -= d;
+    }
+  }
+  void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override {
+    for (const auto& s : springs_) pairs.push_back({s.a, s.b});
+  }
+  void addStiffness(BlockSparseMatrix& K, double kFactor) const override {
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = springs_[i];
+      const Eigen::Matrix3d B = kFactor * J_[i];
+      K.block(K.diagonalSlot(s.a)) -= B;
+      K.block(K.diagonalSlot(s.b)) -= B;
+      K.block(K.slot(s.a, s.b)) += B;
+      K.block(K.slot(s.b, s.a)) += B;
+    }
+  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
+    double e = 0;
+    for (const auto& s : springs_) e += 0.5 * s.ks * std::pow((x.col(s.b) - x.col(s.a)).norm() - s.rest, 2);
+    return e;
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<Spring> springs_;
+  std::vector<Eigen::Matrix3d> J_;  // df_a/dx_b of each spring at the last addForce
+};
+
+}  // namespace
+
+void registerSprings(Registry& r) {
+  ComponentSpec s;
+  s.name = "MeshSpringForceField";
+  s.category = "forcefield";
+  s.doc = "Springs on the node pairs of the mesh's elements, each with its rest length, as SOFA's: on tetrahedra "
+          "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes). A kind "
+          "takes its own stiffness and damping when given, else `stiffness` and `damping`; a pair keeps the first "
+          "kind that lists it. Damping acts along the spring and stays out of the implicit matrix, as in SOFA.";
+  s.add(AttrSpec::real("stiffness").atLeast(0).unit(Dimension::stiffness()).help("stiffness of every kind not given its own"));
+  s.add(AttrSpec::real("damping").atLeast(0).unit({0, 1, -1}).help("damping (force per speed) of every kind not given its own"));
+  for (const char* kind : {"lines", "triangles", "quads", "tetras", "cubes"}) {
+    s.add(AttrSpec::real(std::string(kind) + "Stiffness").atLeast(0).unit(Dimension::stiffness()).help(std::string("stiffness of the ") + kind + "' springs"));
+    s.add(AttrSpec::real(std::string(kind) + "Damping").atLeast(0).unit({0, 1, -1}).help(std::string("damping of the ") + kind + "' springs"));
+  }
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera

@@ -1,0 +1,111 @@
+// MeshSpringForceField: the springs each element kind makes, forces as the gradient of the energy
+// and the stiffness as the derivative of the force (finite differences); the surfaces SOFA scenes
+// give their volumes (Tetra2TriangleTopologicalMapping, the boundary of a grid's hexahedra).
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <string>
+
+#include "builtin/Builtins.h"
+#include "core/Scene.h"
+#include "engine/Roles.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/GridSplit.h"
+#include "io/scene/SceneReader.h"
+
+using namespace viscera;
+
+namespace {
+
+std::unique_ptr<Scene> build(const std::string& body) {
+  auto scene = buildScene(io::parseSceneText("<Node name=\"root\" gravity=\"0 0 0\">" + body + "</Node>", "springs.xml"));
+  scene->init();
+  return scene;
+}
+
+ForceField& springs(Scene& s) {
+  for (auto* f : s.all<ForceField>())
+    if (dynamic_cast<Component*>(f)->typeName() == "MeshSpringForceField") return *f;
+  throw std::runtime_error("no springs");
+}
+
+size_t springCount(const std::string& attrs) {
+  auto scene = build(R"(<RegularGridTopology name="grid" n="2 2 2"/><MechanicalObject/>
+                        <MeshSpringForceField )" + attrs + "/>");
+  std::vector<std::pair<int, int>> pairs;
+  springs(*scene).stiffnessPattern(pairs);
+  return pairs.size();
+}
+
+}  // namespace
+
+TEST(MeshSprings, EachKindOfElementGivesItsPairs) {
+  EXPECT_EQ(springCount(R"(stiffness="10")"), 28u);       // every pair of a hexahedron's 8 nodes
+  EXPECT_EQ(springCount(R"(linesStiffness="10")"), 12u);  // its edges
+  EXPECT_EQ(springCount(R"(quadsStiffness="10")"), 24u);  // edges and face diagonals
+  EXPECT_EQ(springCount(R"(cubesStiffness="10")"), 28u);
+  auto tets = build(R"(<MechanicalObject position="0 0 0 1 0 0 0 1 0 0 0 1"/>
+                       <TetrahedronSetTopologyContainer tetrahedra="0 1 2 3"/>
+                       <MeshSpringForceField tetrasStiffness="10"/>)");
+  std::vector<std::pair<int, int>> pairs;
+  springs(*tets).stiffnessPattern(pairs);
+  EXPECT_EQ(pairs.size(), 6u);
+}
+
+TEST(MeshSprings, ForceIsMinusTheEnergyGradientAndStiffnessItsDerivative) {
+  auto scene = build(R"(<RegularGridTopology name="grid" n="2 2 2"/><MechanicalObject/>
+                        <MeshSpringForceField stiffness="50"/>)");
+  ForceField& ff = springs(*scene);
+  const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+  std::srand(7);
+  const Eigen::Matrix3Xd x = mo.x0 + 0.1 * Eigen::Matrix3Xd::Random(3, 8);
+  const Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, 8);
+  Eigen::Matrix3Xd f = v;
+  ff.addForce(x, v, f);
+  const double h = 1e-6;
+  for (int i = 0; i < 8; ++i)
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Matrix3Xd xp = x, xm = x;
+      xp(c, i) += h;
+      xm(c, i) -= h;
+      const double grad = (ff.potentialEnergy(xp) - ff.potentialEnergy(xm)) / (2 * h);
+      EXPECT_NEAR(f(c, i), -grad, 1e-6 * (1 + std::abs(grad))) << i << " " << c;
+    }
+  // K dx against the change of the force (linearised at x by addForce above).
+  const Eigen::Matrix3Xd dx = 1e-6 * Eigen::Matrix3Xd::Random(3, 8);
+  Eigen::Matrix3Xd f2 = v, f1 = v, df = v;
+  ff.addForce(x + dx, v, f2);
+  ff.addForce(x, v, f1);  // linearise at x
+  ff.addDForce(dx, df, 1.0);
+  EXPECT_LT((f2 - f1 - df).cwiseAbs().maxCoeff(), 1e-9);
+  // Internal forces: they sum to zero.
+  EXPECT_LT(f.rowwise().sum().norm(), 1e-10);
+}
+
+TEST(SofaSurfaces, TheBoundaryOfAGridIsClosedAndOutward) {
+  // Two cells along x: 10 boundary quads, 20 triangles, enclosing the volume 2.
+  const HexList hexa = gridHexahedra({3, 2, 2});
+  const Eigen::Matrix3Xd X = gridPoints({3, 2, 2}, Eigen::Vector3d::Zero(), Eigen::Vector3d(2, 1, 1));
+  const auto tris = hexahedronBoundaryTriangles(hexa);
+  ASSERT_EQ(tris.cols(), 20);
+  double volume = 0;
+  for (int t = 0; t < tris.cols(); ++t)
+    volume += X.col(tris(0, t)).dot(X.col(tris(1, t)).cross(X.col(tris(2, t)))) / 6;
+  EXPECT_NEAR(volume, 2.0, 1e-12);
+}
+
+TEST(SofaSurfaces, Tetra2TriangleMappingFillsTheBoundary) {
+  auto scene = build(R"(<RegularGridTopology name="grid" n="2 2 2"/><MechanicalObject name="dofs"/>
+    <TetrahedronSetTopologyContainer name="tets"/>
+    <Hexa2TetraTopologicalMapping input="@grid" output="@tets"/>
+    <Node name="surface">
+      <TriangleSetTopologyContainer name="container"/>
+      <Tetra2TriangleTopologicalMapping input="@../tets" output="@container"/>
+    </Node>)");
+  FieldValue tris;
+  Component* container = nullptr;
+  for (auto* c : scene->all<Component>())
+    if (c->name() == "container") container = c;
+  ASSERT_TRUE(container && container->field("triangles", tris));
+  EXPECT_EQ(tris.values.size(), 12u * 3);  // the cube's six faces, two triangles each
+}
