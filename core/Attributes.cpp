@@ -94,9 +94,10 @@ std::string expandIndexRanges(const std::string& text) {
         parseInteger(std::string_view(t).substr(0, dash), a) && parseInteger(std::string_view(t).substr(dash + 1), b) &&
         std::isdigit(static_cast<unsigned char>(t[dash + 1]))) {
       if (b < a) throw std::invalid_argument("range '" + t + "' ends before it starts");
-      total += b - a + 1;
-      if (total > kMaxRangeValues)
+      // a >= 0, so b - a cannot overflow; compared before adding, so total cannot either.
+      if (b - a >= kMaxRangeValues - total)
         throw std::invalid_argument("ranges give more than " + std::to_string(kMaxRangeValues) + " values");
+      total += b - a + 1;
       for (long long i = a; i <= b; ++i) out += std::to_string(i) + " ";
       continue;
     }

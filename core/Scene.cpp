@@ -1,4 +1,5 @@
 #include "core/Scene.h"
+#include "core/Text.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -54,12 +55,18 @@ std::vector<AttrDesc> withLegacyNames(const ElementDesc& el, const ComponentSpec
     if (std::none_of(parts.begin(), parts.end(), [](const AttrDesc* a) { return a != nullptr; })) continue;
     AttrDesc* whole = given(group.target);
     std::vector<std::string> value = tokens(whole ? whole->value : target->defaultValue);
-    if (value.size() != 3) value = {"0", "0", "0"};
+    if (value.size() != 3) {
+      if (whole)  // e.g. a unit after the three numbers: the parts cannot be merged into it
+        throw Error(whole->loc, el.tag + "." + group.target + ": give three plain numbers when " + group.parts[0] +
+                                    " " + group.parts[1] + " " + group.parts[2] + " are also given, or only one of the two forms");
+      value = {"0", "0", "0"};
+    }
     SourceLoc loc;
     for (int i = 0; i < 3; ++i)
       if (parts[i]) {
         const auto t = tokens(parts[i]->value);
-        if (t.size() != 1)
+        double number = 0;
+        if (t.size() != 1 || !parseNumber(t[0], number))
           throw Error(parts[i]->loc, el.tag + "." + group.parts[i] + ": expects one number (SOFA's part of " +
                                          group.target + "), got '" + parts[i]->value + "'");
         value[i] = t[0];

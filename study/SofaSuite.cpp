@@ -214,7 +214,8 @@ RegressionList readRegressionList(const std::string& path, const std::string& re
         std::string root = regressionDir;
         if (root.empty())
           if (const char* env = std::getenv("REGRESSION_DIR")) root = env;
-        if (root.empty()) root = (fs::path(path).parent_path().parent_path() / "regression").string();
+        if (root.empty())
+          root = (fs::absolute(fs::path(path)).lexically_normal().parent_path().parent_path() / "regression").string();
         dir = root + dir.substr(var.size());
       } else if (fs::path(dir).is_relative()) {
         dir = (fs::path(path).parent_path() / dir).string();
@@ -371,6 +372,9 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
     r.status = r.sofaError <= entry.epsilon ? SuiteResult::Status::Passed : SuiteResult::Status::Differs;
   } catch (const Error& e) {
     classifyError(e, r);
+  } catch (const std::exception& e) {  // one scene's fault must not end the suite
+    r.status = SuiteResult::Status::Error;
+    r.detail = std::string("internal error: ") + e.what();
   }
   r.seconds = elapsed();
   return r;
@@ -396,6 +400,9 @@ SuiteResult runExampleScene(const std::string& path, int steps) {
     }
   } catch (const Error& e) {
     classifyError(e, r);
+  } catch (const std::exception& e) {
+    r.status = SuiteResult::Status::Error;
+    r.detail = std::string("internal error: ") + e.what();
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -77,7 +78,14 @@ int runSuite(const SuiteOptions& o) {
   } else {
     const std::string listPath =
         o.list.empty() ? (fs::path(o.examples) / "RegressionStateScenes.regression-tests").string() : o.list;
-    const study::RegressionList list = study::readRegressionList(listPath, o.regressionDir);
+    // $REGRESSION_DIR: the option, else the environment variable, else `regression` beside EXAMPLES.
+    std::string regressionDir = o.regressionDir;
+    if (regressionDir.empty() && !std::getenv("REGRESSION_DIR")) {
+      fs::path examples = fs::absolute(o.examples).lexically_normal();
+      if (examples.filename().empty()) examples = examples.parent_path();  // "examples/"
+      regressionDir = (examples.parent_path() / "regression").string();
+    }
+    const study::RegressionList list = study::readRegressionList(listPath, regressionDir);
     for (const auto& e : list.entries) {
       if (!std::regex_search(e.scene, filter)) continue;
       report(study::runRegressionScene(list, e, o.examples), e.scene);

@@ -87,18 +87,34 @@ void SurfaceCollisionModel::init() {
   if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
   state_ = &contextState(*this);
   stiffness_ = attrs_.isSet("contactStiffness") ? attrs_.real("contactStiffness") : 0.0;
-  // The boundary of the tetrahedra in the context or, failing them, of its hexahedra (a grid).
+  // The surface: from the `topology` link or the nearest node with a topology, the boundary of its
+  // tetrahedra, else of its hexahedra (a grid), else its own triangles (a TriangleSetTopologyContainer,
+  // e.g. filled by Tetra2TriangleTopologicalMapping, or a surface loader).
   const Eigen::Matrix3Xd& X = state_->x0;
   io::TriangleList boundary;
-  if (Topology* tets = nearestTopology(true)) {
-    const TetList& T = tets->tetrahedra();
+  Component& source = surfaceSource();
+  const Topology& topo = dynamic_cast<const Topology&>(source);
+  if (topo.points().cols() > 0 && topo.points().cols() != X.cols())
+    throw error("its surface comes from '" + source.name() + "' (" + source.node().path() + "), whose " +
+                std::to_string(topo.points().cols()) + " points are not the nodes of MechanicalObject '" + state_->name() +
+                "' (" + std::to_string(X.cols()) + ")");
+  if (topo.tetrahedra().cols() > 0) {
+    const TetList& T = topo.tetrahedra();
     checkNodes(T.data(), T.size(), X.cols());
     boundary = io::boundaryTriangles(T, X);
-  } else if (Topology* hexa = nearestTopology(false)) {
-    for (const auto& h : hexa->hexahedra()) checkNodes(h.data(), 8, X.cols());
-    boundary = hexahedronBoundaryTriangles(hexa->hexahedra());
+  } else if (!topo.hexahedra().empty()) {
+    for (const auto& h : topo.hexahedra()) checkNodes(h.data(), 8, X.cols());
+    boundary = hexahedronBoundaryTriangles(topo.hexahedra(), X);
   } else {
-    throw error("no topology with tetrahedra or hexahedra in its node or above");
+    FieldValue tris;
+    source.field("triangles", tris);
+    boundary.resize(3, static_cast<Eigen::Index>(tris.values.size() / 3));
+    for (Eigen::Index i = 0; i < boundary.size(); ++i) {
+      if (!(tris.values[i] >= 0 && tris.values[i] < static_cast<double>(X.cols())))
+        throw error("its surface '" + source.name() + "' refers to node " + formatNumber(tris.values[i]) +
+                    ", but MechanicalObject '" + state_->name() + "' has " + std::to_string(X.cols()) + " nodes");
+      boundary.data()[i] = static_cast<int>(tris.values[i]);
+    }
   }
   // Shared by every scene variant with the same mesh (input cache).
   const auto surface = io::cachedDerived<SurfaceTopology>("collision surface", io::keyBytes(boundary) + io::keyBytes(X),
@@ -115,20 +131,41 @@ void SurfaceCollisionModel::init() {
   bvh_->tree.build(bvh_->boxes);
 }
 
-Topology* SurfaceCollisionModel::nearestTopology(bool tetrahedra) {
+namespace {
+// 3: tetrahedra, 2: hexahedra, 1: triangles only, 0: nothing a surface can come from.
+int surfaceRank(const Component& c) {
+  const auto* t = dynamic_cast<const Topology*>(&c);
+  if (!t) return 0;
+  if (t->tetrahedra().cols() > 0) return 3;
+  if (!t->hexahedra().empty()) return 2;
+  FieldValue tris;
+  return c.field("triangles", tris) && !tris.values.empty() ? 1 : 0;
+}
+}  // namespace
+
+Component& SurfaceCollisionModel::surfaceSource() {
   if (attrs_.isSet("topology")) {
-    auto* t = dynamic_cast<Topology*>(linkedComponent("topology"));
-    if (!t) throw error("topology", "does not link to a topology");
-    scene().initComponent(dynamic_cast<Component&>(*t));
-    return (tetrahedra ? t->tetrahedra().cols() > 0 : !t->hexahedra().empty()) ? t : nullptr;
+    Component* c = linkedComponent("topology");
+    if (!c) throw error("topology", "does not link to a component");
+    scene().initComponent(*c);
+    if (!surfaceRank(*c)) throw error("topology", "links to '" + c->name() + "', which has no tetrahedra, hexahedra or triangles");
+    return *c;
   }
-  for (const Node* n = &node(); n; n = n->parent())
-    for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
-      if (auto* t = dynamic_cast<Topology*>(it->get())) {
-        scene().initComponent(**it);
-        if (tetrahedra ? t->tetrahedra().cols() > 0 : !t->hexahedra().empty()) return t;
+  // The nearest node with a topology; in it, tetrahedra before hexahedra before triangles.
+  for (const Node* n = &node(); n; n = n->parent()) {
+    Component* best = nullptr;
+    int bestRank = 0;
+    for (auto it = n->components().rbegin(); it != n->components().rend(); ++it) {
+      if (!dynamic_cast<Topology*>(it->get())) continue;
+      scene().initComponent(**it);
+      if (const int r = surfaceRank(**it); r > bestRank) {
+        best = it->get();
+        bestRank = r;
       }
-  return nullptr;
+    }
+    if (best) return *best;
+  }
+  throw error("no topology with tetrahedra, hexahedra or triangles in its node or above");
 }
 
 void SurfaceCollisionModel::checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const {

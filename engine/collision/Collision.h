@@ -120,8 +120,8 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   struct Bvh;
   // One box per primitive (triangle, or vertex for point models) at positions x.
   void fitBoxes(const Eigen::Matrix3Xd& x);
-  // The `topology` link or the nearest topology in the context with tetrahedra (or hexahedra).
-  Topology* nearestTopology(bool tetrahedra);
+  // Where the surface comes from: the `topology` link, else the nearest node's topology.
+  Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
   MechanicalObject* state_ = nullptr;
   Kind kind_ = Kind::Triangles;

@@ -1,5 +1,6 @@
 #include "engine/topology/GridSplit.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <map>
@@ -72,17 +73,24 @@ TetList elementTetrahedra(const Topology& topo) {
   return splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
 }
 
-Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa) {
+Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa, const Eigen::Matrix3Xd& X) {
   // Outward faces of a hexahedron whose nodes are (0,0,0) (1,0,0) (1,1,0) (0,1,0), then z = 1.
   static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   std::map<std::array<int, 4>, std::pair<int, std::array<int, 4>>> seen;  // sorted corners -> count, face
-  for (const auto& h : hexa)
+  for (const auto& h : hexa) {
+    // Mirrored (negative volume at its centre, from the mean edges): its faces point inwards.
+    const Eigen::Vector3d ex = X.col(h[1]) - X.col(h[0]) + X.col(h[2]) - X.col(h[3]) + X.col(h[5]) - X.col(h[4]) + X.col(h[6]) - X.col(h[7]);
+    const Eigen::Vector3d ey = X.col(h[3]) - X.col(h[0]) + X.col(h[2]) - X.col(h[1]) + X.col(h[7]) - X.col(h[4]) + X.col(h[6]) - X.col(h[5]);
+    const Eigen::Vector3d ez = X.col(h[4]) - X.col(h[0]) + X.col(h[5]) - X.col(h[1]) + X.col(h[6]) - X.col(h[2]) + X.col(h[7]) - X.col(h[3]);
+    const bool mirrored = ex.dot(ey.cross(ez)) < 0;
     for (const auto& f : faces) {
       std::array<int, 4> q{h[f[0]], h[f[1]], h[f[2]], h[f[3]]}, key = q;
+      if (mirrored) std::swap(q[1], q[3]);
       std::sort(key.begin(), key.end());
       auto [it, fresh] = seen.try_emplace(key, 0, q);
       ++it->second.first;
     }
+  }
   std::vector<std::array<int, 4>> boundary;
   for (const auto& [key, entry] : seen)
     if (entry.first == 1) boundary.push_back(entry.second);

@@ -19,8 +19,9 @@ HexList gridHexahedra(const std::array<int, 3>& n);
 TetList splitHexahedra(const HexList& hexa, int nx, int ny, bool swapping, bool fixOrientation = true);
 
 // The boundary faces of hexahedra in SOFA's node order (faces that belong to one hexahedron),
-// outward, each quad split into two triangles (0 1 2, 0 2 3): the surface of a grid.
-Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa);
+// outward at the points X (a mirrored hexahedron's faces are turned), each quad split into two
+// triangles (0 1 2, 0 2 3): the surface of a grid.
+Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa, const Eigen::Matrix3Xd& X);
 
 // The tetrahedra a TetrahedronFEMForceField builds on `topo`: its tetrahedra, or, directly on a
 // grid, SOFA's split of its hexahedra (straight vertex order, as SOFA's force field does). Engines

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "core/Registry.h"
+#include "core/Text.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
@@ -136,8 +137,9 @@ class TriangleSetTopologyContainer : public Component, public Topology {
       auto t = linkedInts("triangles");
       setTriangles(std::vector<double>(t.begin(), t.end()));
     }
+    // Without points of its own the triangles index the body's nodes (checked where they are used).
     for (Eigen::Index i = 0; i < tris_.size(); ++i)
-      if (points_.cols() > 0 && (tris_.data()[i] < 0 || tris_.data()[i] >= points_.cols()))
+      if (points_.cols() > 0 && tris_.data()[i] >= points_.cols())
         throw error("triangles", "refer to node " + std::to_string(tris_.data()[i]) + ", but there are " +
                                      std::to_string(points_.cols()) + " points");
   }
@@ -158,7 +160,10 @@ class TriangleSetTopologyContainer : public Component, public Topology {
  private:
   void setTriangles(const std::vector<double>& v) {
     tris_.resize(3, static_cast<Eigen::Index>(v.size() / 3));
-    for (size_t i = 0; i < 3 * static_cast<size_t>(tris_.cols()); ++i) tris_.data()[i] = static_cast<int>(v[i]);
+    for (size_t i = 0; i < 3 * static_cast<size_t>(tris_.cols()); ++i) {
+      if (!(v[i] >= 0 && v[i] < 2147483647.0)) throw error("triangles", "node index " + formatNumber(v[i]) + " is out of range");
+      tris_.data()[i] = static_cast<int>(v[i]);
+    }
   }
   Eigen::Matrix3Xd points_;
   io::TriangleList tris_;

@@ -32,7 +32,12 @@ struct ReadContext {
   std::vector<std::string> searchPath;
   std::vector<std::string> includeChain;
   std::vector<std::string> notes;
+  long long elements = 0;  // across all files, against kMaxElements
 };
+
+// A scene may hold at most this many elements once its includes are expanded (a file that
+// includes another many times, several levels deep, multiplies them).
+constexpr long long kMaxElements = 1'000'000;
 
 bool blank(const char* s) {
   for (; *s; ++s)
@@ -123,6 +128,8 @@ struct Converter {
     size_t start = elementStart(n);
     el.loc = at(start);
     if (depth > kMaxDepth) throw Error(el.loc, "elements nested more than " + std::to_string(kMaxDepth) + " deep");
+    if (++rc.elements > kMaxElements)
+      throw Error(el.loc, "the scene has more than " + std::to_string(kMaxElements) + " elements with its includes expanded");
     for (const auto& a : n.attributes()) {
       AttrDesc d;
       d.name = a.name();
@@ -167,8 +174,14 @@ struct Converter {
                                  std::to_string(rc.includeChain.size()) + " files)");
     if (static_cast<int>(rc.includeChain.size()) >= kMaxIncludeDepth)
       throw Error(href->loc, "include.href: includes nested more than " + std::to_string(kMaxIncludeDepth) + " deep");
+    std::string text;
+    try {
+      text = readInputFile(path, "the included file");
+    } catch (const Error& e) {
+      throw Error(href->loc, std::string("include.href: ") + e.what());
+    }
     rc.includeChain.push_back(canonical);
-    ElementDesc root = parseRoot(readInputFile(path, "the included file"), path, rc, depth);
+    ElementDesc root = parseRoot(text, path, rc, depth);
     rc.includeChain.pop_back();
     for (const auto& a : inc.attrs) {
       if (a.name == "href") continue;

@@ -86,7 +86,7 @@ TEST(SofaSurfaces, TheBoundaryOfAGridIsClosedAndOutward) {
   // Two cells along x: 10 boundary quads, 20 triangles, enclosing the volume 2.
   const HexList hexa = gridHexahedra({3, 2, 2});
   const Eigen::Matrix3Xd X = gridPoints({3, 2, 2}, Eigen::Vector3d::Zero(), Eigen::Vector3d(2, 1, 1));
-  const auto tris = hexahedronBoundaryTriangles(hexa);
+  const auto tris = hexahedronBoundaryTriangles(hexa, X);
   ASSERT_EQ(tris.cols(), 20);
   double volume = 0;
   for (int t = 0; t < tris.cols(); ++t)

@@ -214,3 +214,37 @@ TEST(SofaSceneForms, IndexRangesExpandInIntegerLists) {
   e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn")); });
   EXPECT_NE(e.find("more than 10000000 values"), std::string::npos) << e;
 }
+
+TEST(SofaSceneForms, HostileFormsAreClearErrors) {
+  TempDir dir;
+  auto problem = [&](const std::string& text) {
+    write(dir / "scene.scn", text);
+    return errorOf([&] {
+      auto s = buildScene(io::readScene(dir / "scene.scn"));
+      s->init();
+    });
+  };
+  // A range whose length overflows a 64-bit count is refused, not expanded.
+  std::string e = problem(R"(<Node name="root"><MechanicalObject position="0 0 0"/><FixedConstraint indices="1 0-9223372036854775806"/></Node>)");
+  EXPECT_NE(e.find("more than 10000000 values"), std::string::npos) << e;
+  // A vector with a unit cannot take SOFA's parts as well.
+  e = problem(R"(<Node name="root"><MechanicalObject position="0 0 0" translation="0 10 20 mm" dx="5"/></Node>)");
+  EXPECT_NE(e.find("MechanicalObject.translation: give three plain numbers"), std::string::npos) << e;
+  // A bad part is reported at that part.
+  e = problem("<Node name=\"root\">\n<MechanicalObject position=\"0 0 0\" dx=\"1\"\n dz=\"abc\"/></Node>");
+  EXPECT_NE(e.find("scene.scn:3:"), std::string::npos) << e;
+  EXPECT_NE(e.find("MechanicalObject.dz: expects one number"), std::string::npos) << e;
+  // An include that is a folder names the include's line.
+  std::filesystem::create_directories(dir / "folder.xml");
+  e = problem("<Node name=\"root\">\n  <include href=\"folder.xml\"/>\n</Node>");
+  EXPECT_NE(e.find("scene.scn:2:"), std::string::npos) << e;
+  // A collision surface whose points are not the body's nodes.
+  write(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 2 2 2\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  e = problem(R"(<Node name="root">
+  <MechanicalObject name="dofs" position="0 0 0 1 0 0 0 1 0 0 0 1"/>
+  <MeshOBJLoader name="surface" filename="tri.obj"/>
+  <TriangleSetTopologyContainer name="tris" src="@surface"/>
+  <TriangleCollisionModel/>
+</Node>)");
+  EXPECT_NE(e.find("whose 5 points are not the nodes of MechanicalObject 'dofs' (4)"), std::string::npos) << e;
+}
