@@ -7,6 +7,17 @@
 #include "tests/apps/cli_helpers.h"
 
 namespace viscera_test {
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define VISCERA_TEST_UNDER_ASAN 1
+#endif
+#endif
+#ifdef VISCERA_TEST_UNDER_ASAN
+constexpr bool kUnderAddressSanitizer = true;
+#else
+constexpr bool kUnderAddressSanitizer = false;
+#endif
+
 namespace {
 
 std::string blockScene() { return sourcePath("tests/data/study/block.xml"); }
@@ -126,8 +137,11 @@ TEST_F(SearchCli, MpiRanksGiveTheSameTableAsThreads) {
     return runViscera(a, prefix);
   };
   ASSERT_EQ(with(tmp_ / "threads", "").rc, 0);
-  // Open MPI refuses root without these (containers, CI).
-  const RunResult r = with(tmp_ / "mpi", "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 --oversubscribe ");
+  // Open MPI refuses root without these (containers, CI). It never frees what its components
+  // allocate (some in plugins it unloads, out of reach of suppressions), so under the sanitizer
+  // build (`make test-asan`) the ranks run without the leak check; ASan's other checks stay on.
+  const std::string leaks = kUnderAddressSanitizer ? "-x ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 " : "";
+  const RunResult r = with(tmp_ / "mpi", "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 --oversubscribe " + leaks);
   ASSERT_EQ(r.rc, 0) << r;
   const auto a = resultsTable(tmp_ / "threads"), b = resultsTable(tmp_ / "mpi");
   EXPECT_EQ(a.size(), 6u);
