@@ -84,14 +84,22 @@ void classifyError(const Error& e, SuiteResult& r) {
 }
 
 // Where example scenes run: exporters and recorders in them write here, never beside the scene.
+// The folder is removed when the process ends.
 std::string scratchFolder() {
-  static const fs::path dir = [] {
-    std::error_code ec;
-    fs::path d = fs::temp_directory_path(ec) / ("viscera-sofa-suite-" + std::to_string(::getpid()));
-    fs::create_directories(d, ec);
-    return d;
-  }();
-  return dir.string();
+  struct Scratch {
+    fs::path dir;
+    Scratch() {
+      std::error_code ec;
+      dir = fs::temp_directory_path(ec) / ("viscera-sofa-suite-" + std::to_string(::getpid()));
+      fs::create_directories(dir, ec);
+    }
+    ~Scratch() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  };
+  static const Scratch scratch;
+  return scratch.dir.string();
 }
 
 // A scene built from its file, with outputs sent to the scratch folder.
