@@ -1,5 +1,5 @@
-// Topologies: RegularGridTopology, Hexa2TetraTopologicalMapping, TetrahedronSetTopologyContainer
-// and the mesh loaders (MeshGmshLoader, MeshVTKLoader).
+// Topologies: RegularGridTopology, the tetrahedron and triangle containers, the topological
+// mappings that fill them (Hexa2Tetra, Tetra2Triangle), and the mesh and surface loaders.
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -62,13 +62,31 @@ class RegularGridTopology : public Component, public Topology {
   HexList hexa_;
 };
 
+// Initialises the topological mappings that fill `container`, so that it holds their elements
+// before anything reads it.
+void initFillersOf(Component& container) {
+  for (auto* m : container.scene().all<TopologyFiller>())
+    if (m->fills(container)) container.scene().initComponent(dynamic_cast<Component&>(*m));
+}
+
+// A topological mapping: writes the elements it derives from `input` into the container `output`.
+class TopologicalMapping : public Component, public TopologyFiller {
+ public:
+  using Component::Component;
+  bool fills(const Component& c) const override { return attrs_.get("output").set && &output() == &c; }
+
+ protected:
+  Component& output() const {
+    const AttrValue& o = attrs_.get("output");
+    return scene().resolve(*this, o.text, o.loc, typeName() + ".output");
+  }
+};
+
 class TetrahedronSetTopologyContainer : public Component, public Topology {
  public:
   using Component::Component;
   void init() override {
-    // A topological mapping may fill this container: run it first.
-    for (auto* m : scene().all<TopologyFiller>())
-      if (m->fills(*this)) scene().initComponent(dynamic_cast<Component&>(*m));
+    initFillersOf(*this);  // a topological mapping may fill this container
     if (filled_) return;
     if (attrs_.isSet("src")) {
       auto* t = dynamic_cast<Topology*>(linkedComponent("src"));
@@ -119,8 +137,7 @@ class TriangleSetTopologyContainer : public Component, public Topology {
  public:
   using Component::Component;
   void init() override {
-    for (auto* m : scene().all<TopologyFiller>())
-      if (m->fills(*this)) scene().initComponent(dynamic_cast<Component&>(*m));
+    initFillersOf(*this);
     if (filled_) return;
     if (attrs_.isSet("src")) {
       auto* c = linkedComponent("src");
@@ -172,20 +189,15 @@ class TriangleSetTopologyContainer : public Component, public Topology {
 
 // Writes the boundary triangles of a tetrahedral topology (outward, as io::boundaryTriangles) into
 // a TriangleSetTopologyContainer: SOFA's way of giving a volume its collision or visual surface.
-class Tetra2TriangleTopologicalMapping : public Component, public TopologyFiller {
+class Tetra2TriangleTopologicalMapping : public TopologicalMapping {
  public:
-  using Component::Component;
-  bool fills(const Component& c) const override {
-    const AttrValue& o = attrs_.get("output");
-    return o.set && &scene().resolve(*this, o.text, o.loc, "Tetra2TriangleTopologicalMapping.output") == &c;
-  }
+  using TopologicalMapping::TopologicalMapping;
   void init() override {
     auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
     if (!in) throw error("input", "does not link to a topology");
     scene().initComponent(dynamic_cast<Component&>(*in));
     if (in->tetrahedra().cols() == 0) throw error("input", "links to a topology without tetrahedra");
-    const AttrValue& o = attrs_.get("output");
-    auto* out = dynamic_cast<TriangleSetTopologyContainer*>(&scene().resolve(*this, o.text, o.loc, "Tetra2TriangleTopologicalMapping.output"));
+    auto* out = dynamic_cast<TriangleSetTopologyContainer*>(&output());
     if (!out) throw error("output", "does not link to a TriangleSetTopologyContainer");
     // A container filled by a mapping holds elements only: the points are the body's rest positions.
     const Eigen::Matrix3Xd points = in->points().cols() > 0 ? in->points() : contextState(*this).x0;
@@ -199,18 +211,13 @@ class Tetra2TriangleTopologicalMapping : public Component, public TopologyFiller
   }
 };
 
-class Hexa2TetraTopologicalMapping : public Component, public TopologyFiller {
+class Hexa2TetraTopologicalMapping : public TopologicalMapping {
  public:
-  using Component::Component;
-  bool fills(const Component& c) const override {
-    const AttrValue& o = attrs_.get("output");
-    return o.set && &scene().resolve(*this, o.text, o.loc, "Hexa2TetraTopologicalMapping.output") == &c;
-  }
+  using TopologicalMapping::TopologicalMapping;
   void init() override {
     auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
     if (!in || in->hexahedra().empty()) throw error("input", "does not link to a topology with hexahedra");
-    const AttrValue& o = attrs_.get("output");
-    auto* out = dynamic_cast<TetrahedronSetTopologyContainer*>(&scene().resolve(*this, o.text, o.loc, "Hexa2TetraTopologicalMapping.output"));
+    auto* out = dynamic_cast<TetrahedronSetTopologyContainer*>(&output());
     if (!out) throw error("output", "does not link to a TetrahedronSetTopologyContainer");
     auto cells = in->gridCells();
     // SOFA uses nx = 2, ny = 1 when the input is not a grid.
