@@ -15,7 +15,7 @@ void registerHexahedronFEM(Registry&);
 void registerVTKExporter(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
-void registerEulerExplicit(Registry&);
+void registerExplicitSolvers(Registry&);
 void registerStaticSolver(Registry&);
 void registerDrivers(Registry&);
 void registerCollision(Registry&);
@@ -37,7 +37,7 @@ void registerBuiltins(Registry& r) {
   registerVTKExporter(r);
   registerLinearSolvers(r);
   registerEulerImplicit(r);
-  registerEulerExplicit(r);
+  registerExplicitSolvers(r);
   registerStaticSolver(r);
   registerDrivers(r);
   registerCollision(r);

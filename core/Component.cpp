@@ -56,6 +56,7 @@ Node& Node::addChild(std::string name, SourceLoc loc) {
 
 Component& Node::addComponent(std::unique_ptr<Component> c) {
   components_.push_back(std::move(c));
+  objects_.push_back({components_.back()->typeName(), components_.back().get()});
   return *components_.back();
 }
 

@@ -94,6 +94,11 @@ class Node {
   const std::vector<std::unique_ptr<Component>>& components() const { return components_; }
   Node& addChild(std::string name, SourceLoc loc);
   Component& addComponent(std::unique_ptr<Component> c);
+  // An object element this node skips (SOFA-only or visual), kept so that SOFA's positional
+  // links ("@[-1]": the object just before) count the node's objects as written.
+  void addSkippedObject(std::string tag) { objects_.push_back({std::move(tag), nullptr}); }
+  // The node's object elements in the order written: their tags and components (null if skipped).
+  const std::vector<std::pair<std::string, Component*>>& objects() const { return objects_; }
   std::string path() const;  // "/root/Beam"
   // An inactive node (`activated="false"`) is built and validated but not simulated: it and its
   // sub-nodes are left out of every role lookup and of init.
@@ -138,6 +143,7 @@ class Node {
   SourceLoc loc_;
   std::vector<std::unique_ptr<Node>> children_;
   std::vector<std::unique_ptr<Component>> components_;
+  std::vector<std::pair<std::string, Component*>> objects_;
   bool active_ = true;
 };
 

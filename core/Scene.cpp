@@ -192,6 +192,7 @@ struct Builder {
       }
       if (const std::string* why = registry.ignoredReason(child.tag)) {
         notes.push_back(child.loc.str() + ": note: " + child.tag + " ignored (" + *why + ")");
+        node.addSkippedObject(child.tag);
         continue;
       }
       const ComponentSpec* spec = registry.find(child.tag);
@@ -208,6 +209,7 @@ struct Builder {
       }
       if (!spec->factory) {
         notes.push_back(child.loc.str() + ": note: " + child.tag + " ignored (" + spec->doc + ")");
+        node.addSkippedObject(child.tag);
         continue;
       }
       Attributes attrs = parseAttributes(child, *spec, units, notes);
@@ -339,6 +341,23 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
     return Error(loc, what + ": link '" + link + "': " + why);
   };
   if (parts.empty()) throw fail("empty link");
+  // SOFA's positional link: "[-k]" is the object written k places before this one in its node.
+  if (parts.size() == 1 && !absolute && parts[0].size() > 3 && parts[0].compare(0, 2, "[-") == 0 && parts[0].back() == ']') {
+    const std::string digits = parts[0].substr(2, parts[0].size() - 3);
+    if (digits.size() > 6 || digits.find_first_not_of("0123456789") != std::string::npos)
+      throw fail("a positional link is [-k] with k a positive whole number");
+    const long k = std::stol(digits);
+    const auto& objs = from.node().objects();
+    long self = -1;
+    for (size_t j = 0; j < objs.size(); ++j)
+      if (objs[j].second == &from) self = static_cast<long>(j);
+    if (k <= 0 || self < k)
+      throw fail("there are only " + std::to_string(std::max(self, 0L)) + " objects before this one in " + from.node().path());
+    const auto& [tag, target] = objs[static_cast<size_t>(self - k)];
+    if (!target) throw fail("it names the <" + tag + ">, which is ignored here");
+    if (!target->node().activeInTree()) throw fail("it names a component in the inactive node " + target->node().path());
+    return *target;
+  }
   Node* node = absolute ? root_.get() : &from.node();
   // An absolute path may name the root node first.
   size_t i = 0;

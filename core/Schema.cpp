@@ -51,7 +51,9 @@ bool isCosmeticAttribute(const std::string& name) {
                                 // SOFA: how element loops are run (sequenced or parallel)
                                 "computeForceStrategy", "computeForceDerivStrategy",
                                 // SOFA: the matrix storage a linear solver uses, and its threading
-                                "linearSystem", "parallelInverseProduct"};
+                                "linearSystem", "parallelInverseProduct",
+                                // SOFA: a node's old ordering hint, and a solver's residual printout
+                                "depend", "computeResidual"};
   for (const char* e : exact)
     if (name == e) return true;
   return name.rfind("draw", 0) == 0 || name.rfind("show", 0) == 0;

@@ -41,6 +41,9 @@ RegressionList readRegressionList(const std::string& path, const std::string& re
 struct ReferenceFrame {
   double t = 0;
   std::vector<double> x, v;
+  // The most significant digits any X or V value of the dump is printed with (SOFA prints six):
+  // a state is compared with the reference at that precision.
+  int digits = 17;
 };
 // Reads a SOFA state dump (.txt.gz or plain text). Throws viscera::Error naming the file and line.
 std::vector<ReferenceFrame> readStateDump(const std::string& path);

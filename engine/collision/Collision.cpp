@@ -33,6 +33,26 @@ void SphereCollisionModel::init() {
 
 Eigen::Vector3d SphereCollisionModel::centre() const { return body_->p; }
 
+void NodeSphereCollisionModel::init() {
+  state_ = &contextState(*this, "mstate");
+  const int n = state_->size();
+  if (attrs().isSet("listRadius")) {
+    radii_ = linkedReals("listRadius");
+    if (static_cast<int>(radii_.size()) != n)
+      throw error("listRadius", "has " + std::to_string(radii_.size()) + " radii for the " + std::to_string(n) +
+                                    " nodes of MechanicalObject '" + state_->name() + "' (one per node)");
+  } else {
+    const auto& r = attrs().reals("radius");
+    if (r.size() == 1) radii_.assign(n, r[0]);
+    else if (static_cast<int>(r.size()) == n) radii_ = r;
+    else throw error("radius", "one radius, or one per node of MechanicalObject '" + state_->name() + "' (" + std::to_string(n) + ")");
+  }
+  for (double r : radii_)
+    if (!(r > 0)) throw error(attrs().isSet("listRadius") ? "listRadius" : "radius", "radii must be positive");
+  if (attrs().boolean("selfCollision"))
+    throw error("selfCollision", "self-collision is not handled: set it false");
+}
+
 // ---------------------------------------------------------------------------------------------
 // SurfaceCollisionModel
 
@@ -472,6 +492,27 @@ void CollisionPipeline::init() {
       scene().addNote(s->loc().str() + ": note: " + s->typeName() + " '" + s->name() + "' is covered by " + b->typeName() +
                       " '" + b->name() + "' on the same body (its edges and vertices are contact features too)");
   }
+  // Spheres on a deformable body's nodes can only touch another deformable body, which is not
+  // handled: accept them where there is nothing for them to touch.
+  const auto nodeSpheres = scene().all<NodeSphereCollisionModel>();
+  for (NodeSphereCollisionModel* ns : nodeSpheres) scene().initComponent(*ns);
+  if (!nodeSpheres.empty()) {
+    const NodeSphereCollisionModel& ns = *nodeSpheres.front();
+    const size_t others = spheres_.size() + surfaces_.size() + nodeSpheres.size() - 1;
+    if (others > 0)
+      throw ns.error("puts spheres on the nodes of the deformable body '" + ns.mstate().name() +
+                     "'; contact between deformable bodies is not handled (Viscera's contacts are rigid spheres "
+                     "against tissue surfaces), and this scene has " + std::to_string(others) + " other collision model(s)");
+    scene().addNote(ns.loc().str() + ": note: " + ns.typeName() + " '" + ns.name() +
+                    "' is the scene's only collision model and does not collide with itself: no contact can occur");
+    return;
+  }
+  if (spheres_.empty() || surfaces_.empty()) {
+    // Nothing can touch (as SOFA's models without a partner or self-collision): no response to set up.
+    scene().addNote(loc().str() + ": note: CollisionPipeline has " + std::to_string(spheres_.size()) + " sphere and " +
+                    std::to_string(surfaces_.size()) + " surface collision models: no contact can occur");
+    return;
+  }
   if (settings_.response == ContactSettings::Response::Penalty) {
     for (SurfaceCollisionModel* s : surfaces_)
       if (s->active() && !(s->contactStiffness() > 0))
@@ -481,9 +522,6 @@ void CollisionPipeline::init() {
   } else if (scene().all<ConstraintSolver>().empty()) {
     throw error("the constraint contact response needs FreeMotionAnimationLoop and GenericConstraintSolver in the root node");
   }
-  if (spheres_.empty() || surfaces_.empty())
-    scene().addNote(loc().str() + ": note: CollisionPipeline has " + std::to_string(spheres_.size()) + " sphere and " +
-                    std::to_string(surfaces_.size()) + " surface collision models: no contact can occur");
 }
 
 void CollisionPipeline::detect() {

@@ -76,6 +76,22 @@ class SphereCollisionModel : public Component {
   double radius_ = 1.0;
 };
 
+// Spheres on the nodes of a deformable body: SOFA's SphereCollisionModel on a Vec3d object (a
+// body approximated by spheres mapped from its volume). Contact between two deformable bodies is
+// not handled, so the pipeline accepts these only where they have nothing to touch: no self-
+// collision, and no other collision model in the scene.
+class NodeSphereCollisionModel : public Component {
+ public:
+  using Component::Component;
+  void init() override;
+  MechanicalObject& mstate() const { return *state_; }
+  const std::vector<double>& radii() const { return radii_; }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<double> radii_;
+};
+
 // The boundary surface of the tetrahedra of a deformable body (SOFA's TriangleCollisionModel;
 // LineCollisionModel and PointCollisionModel use the same surface with fewer features).
 class SurfaceCollisionModel : public Component, public ForceField, public Stateful {

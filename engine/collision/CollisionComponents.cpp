@@ -1,6 +1,8 @@
 // Declarations of the collision components (models, pipeline, intersection, response).
 #include "engine/collision/Collision.h"
 #include "core/Registry.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 
 namespace viscera {
 
@@ -22,12 +24,20 @@ void registerCollision(Registry& r) {
     s.name = "SphereCollisionModel";
     s.aliases = {"SphereModel", "Sphere"};
     s.category = "collision";
-    s.doc = "A sphere at the origin of a rigid body's frame (the instrument tip).";
-    s.add(AttrSpec::reals("radius").def("1").unit(Dimension::length()).help("sphere radius (one value)"));
+    s.doc = "A sphere at the origin of a rigid body's frame (the instrument tip). On a Vec3d MechanicalObject "
+            "(written after it in the node): a sphere on every node, e.g. mapped from a body's volume; those collide "
+            "with nothing, so the scene may hold no other collision model.";
+    s.add(AttrSpec::reals("radius").def("1").unit(Dimension::length()).help("sphere radius (one value; on a Vec3d object also one per node)"));
+    s.add(AttrSpec::reals("listRadius").unit(Dimension::length()).linked().help("on a Vec3d object: one radius per node, e.g. \"@[-2].listRadius\" from a SphereLoader"));
     s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("accepted for SOFA scenes; the penalty stiffness is the tissue model's"));
     s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
     addSofaModelFlags(s);
-    s.factory = [](BuildContext& c) { return std::make_unique<SphereCollisionModel>(c); };
+    s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      // The object it sits on is written before it in the node, as SOFA's context lookup expects.
+      const Node& n = c.node();
+      if (n.find<MechanicalObject>() && !n.find<RigidObject>()) return std::make_unique<NodeSphereCollisionModel>(c);
+      return std::make_unique<SphereCollisionModel>(c);
+    };
     r.add(std::move(s));
   }
   const char* docs[3][2] = {

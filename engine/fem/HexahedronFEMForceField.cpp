@@ -18,6 +18,7 @@
 #include "engine/fem/HexahedronFEMForceField.h"
 
 #include "core/Registry.h"
+#include "engine/mechanics/ElementMass.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
 #include "engine/State.h"
@@ -193,7 +194,7 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     return bad;
   }
 
- private:
+ protected:
   Nodes8 gather(const Eigen::Matrix3Xd& x, size_t e) const {
     Nodes8 p;
     for (int k = 0; k < 8; ++k) p.col(k) = x.col(hexa_[e][k]);
@@ -224,6 +225,56 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
   std::vector<std::array<int, 64>> slots_;
 };
 
+// SOFA's HexahedronFEMForceFieldAndMass: the force field and the mass of the same hexahedra, the
+// consistent matrix of trilinear elements (rho times int N_i N_j dV, exact on parallelepipeds) or,
+// with lumpedMass, its row sums. Gravity acts through the lumped masses (M g for a uniform g).
+class HexahedronFEMAndMass : public HexahedronFEM, public Mass {
+ public:
+  using HexahedronFEM::HexahedronFEM;
+  void init() override {
+    HexahedronFEM::init();
+    const double rho = attrs_.real("density");
+    Eigen::MatrixXi elements(8, static_cast<Eigen::Index>(hexa_.size()));
+    std::vector<Eigen::MatrixXd> Me;
+    for (size_t e = 0; e < hexa_.size(); ++e) {
+      for (int k = 0; k < 8; ++k) elements(k, static_cast<Eigen::Index>(e)) = hexa_[e][k];
+      Me.push_back(hexahedronMassMatrix(rest_[e], [rho](const Eigen::VectorXd&) { return rho; }));
+    }
+    matrix_.set(elements, std::move(Me));
+    m_ = matrix_.rowSums(state_->size());
+    consistent_ = !attrs_.boolean("lumpedMass");
+  }
+  MechanicalObject& mstate() const override { return *state_; }
+  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override {
+    HexahedronFEM::addForce(x, v, f);
+    addGravity(m_, scene().gravity(), f);
+  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
+    return HexahedronFEM::potentialEnergy(x) + gravityEnergy(m_, scene().gravity(), x);
+  }
+  bool field(const std::string& name, FieldValue& out) const override { return massField(m_, name, out); }
+  const Eigen::VectorXd& nodeMass() const override { return m_; }
+  bool consistent() const override { return consistent_; }
+  void massPattern(std::vector<std::pair<int, int>>& pairs) const override { matrix_.pattern(pairs); }
+  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const override {
+    matrix_.addMdx(dx, out, factor);
+  }
+  void addMassMatrix(BlockSparseMatrix& A, double factor) const override { matrix_.addTo(A, factor); }
+
+ private:
+  ElementMassMatrix matrix_;
+  Eigen::VectorXd m_;
+  bool consistent_ = true;
+};
+
+void addHexahedronFEMAttributes(ComponentSpec& s) {
+  s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per hexahedron"));
+  s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
+  s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
+  s.add(AttrSpec::link("topology").help("topology with hexahedra (default: the nearest in the node or above)"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+}
+
 }  // namespace
 
 void registerHexahedronFEM(Registry& r) {
@@ -234,12 +285,23 @@ void registerHexahedronFEM(Registry& r) {
     s.doc = "Linear elastic trilinear hexahedra, as SOFA's (stiffness by 2 x 2 x 2 Gauss points). method=small: linear; "
             "large: corotational with the element frame from its mean edges (SOFA's default); polar: corotational with "
             "the polar decomposition of the mean edges. The implicit solve uses R K0 R^T as SOFA does.";
-    s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per hexahedron"));
-    s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
-    s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
-    s.add(AttrSpec::link("topology").help("topology with hexahedra (default: the nearest in the node or above)"));
-    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    addHexahedronFEMAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<HexahedronFEM>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "HexahedronFEMForceFieldAndMass";
+    s.category = "forcefield";
+    s.doc = "HexahedronFEMForceField and the mass of the same hexahedra in one component, as SOFA's: the consistent mass "
+            "matrix of trilinear elements (density times the integral of N_i N_j, 2 x 2 x 2 Gauss points, exact on "
+            "parallelepipeds) or, with lumpedMass, its row sums. Applies gravity. SOFA's own element matrix differs: "
+            "all its entries are rho V 8/27 (rank one, rows summing to 64/27 rho V per node, about 19 times the "
+            "element's mass in all) while its gravity uses rho V / 8 per node; Viscera keeps the true mass.";
+    addHexahedronFEMAttributes(s);
+    s.add(AttrSpec::real("density").def("1").above(0).unit(Dimension::density()).help("mass per volume"));
+    s.add(AttrSpec::boolean("lumpedMass").def("false").help("lump the mass on the diagonal (row sums); false keeps the consistent matrix"));
+    s.factory = [](BuildContext& c) { return std::make_unique<HexahedronFEMAndMass>(c); };
     r.add(std::move(s));
   }
 }

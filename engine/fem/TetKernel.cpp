@@ -138,6 +138,26 @@ Mat34 elementForce(Method m, const ElementRest& e, const Mat34& x, Eigen::Matrix
   return R.transpose() * elasticForce(e, U);
 }
 
+Eigen::Matrix3d frameSvd(const ElementRest& e, const Mat34& x) {
+  Eigen::Matrix3d Ecur;
+  Ecur << x.col(1) - x.col(0), x.col(2) - x.col(0), x.col(3) - x.col(0);
+  const double J = Ecur.determinant() / (e.sign * 6.0 * e.volume);
+  if (J >= 1e-6) return framePolar(x);
+  // F_local maps the rest edges in the element frame to the current edges in the world:
+  // F_local = F R0^T, whose rotation factor is Q R0^T; the frame is R0 Q^T, its transpose.
+  Eigen::Matrix3d restInverse;  // rows: gradients of N1..N3, the inverse of the local rest edges
+  restInverse << e.G.col(1).transpose(), e.G.col(2).transpose(), e.G.col(3).transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(Ecur * restInverse, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  // det(rotation factor) = e.sign, as the rest frame (a reflection for a negatively oriented element).
+  D(2, 2) = e.sign * (svd.matrixU() * svd.matrixV().transpose()).determinant() > 0 ? 1.0 : -1.0;
+  return (svd.matrixU() * D * svd.matrixV().transpose()).transpose();
+}
+
+Mat34 elementForceInFrame(const ElementRest& e, const Mat34& x, const Eigen::Matrix3d& R) {
+  return R.transpose() * elasticForce(e, localPositions(Method::Polar, R, x) - e.X);
+}
+
 Mat12 elementStiffness(Method m, const ElementRest& e, const Eigen::Matrix3d& R) {
   // Block (i, j) = -V times the law's coupling of the rotated gradients h = R^T G.
   const Mat34 h = R.transpose() * e.G;

@@ -76,6 +76,13 @@ double vonMises(const Eigen::Matrix3d& sigma);
 
 // World-frame element force for current positions x (3 x 4); also returns the frame R.
 Mat34 elementForce(Method m, const ElementRest& e, const Mat34& x, Eigen::Matrix3d& R);
+// SOFA's "svd" frame: the polar frame, except for an element whose volume ratio J = det F (F the
+// deformation gradient) is below 1e-6, inverted or nearly flat, where the polar frame is
+// undefined or a reflection: there the frame is the rotation of the SVD of F (the reflection
+// moved to the smallest singular value) applied to the rest frame, which turns the element back.
+Eigen::Matrix3d frameSvd(const ElementRest& e, const Mat34& x);
+// elementForce with a given frame R (method Polar's local positions, Y = R x).
+Mat34 elementForceInFrame(const ElementRest& e, const Mat34& x, const Eigen::Matrix3d& R);
 // The 12 x 12 stiffness the solver uses (SOFA's: -R^T K0 R, no derivative of R).
 Mat12 elementStiffness(Method m, const ElementRest& e, const Eigen::Matrix3d& R);
 // The exact derivative of elementForce with respect to x (includes the derivative of R).

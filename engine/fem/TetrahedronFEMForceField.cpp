@@ -22,8 +22,10 @@ void TetrahedronFEMForceField::init() {
   // SOFA's element force fields fix the method by their type (LinearSmallStrain: small;
   // Corotational: its rotationMethod, a polar decomposition).
   const std::string m = spec().find("method") ? attrs_.str("method") : spec().find("rotationMethod") ? "polar" : "small";
-  method_ = m == "small" ? fem::Method::Small : m == "polar" ? fem::Method::Polar : fem::Method::Large;
+  method_ = m == "small" ? fem::Method::Small : m == "polar" || m == "svd" ? fem::Method::Polar : fem::Method::Large;
+  svd_ = m == "svd";
   exact_ = spec().find("exactTangent") && attrs_.boolean("exactTangent");
+  if (svd_ && exact_) throw error("exactTangent", "is for methods large and polar; svd uses SOFA's tangent");
   tets_ = elementTetrahedra(contextTopology(*this));
   const int n = state_->size();
   for (int e = 0; e < tets_.cols(); ++e)
@@ -61,7 +63,14 @@ Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {
 void TetrahedronFEMForceField::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
   if (exact_) xLast_ = x;
   forEachColored(colors_, [&](int e) {
-    const Mat34 fe = fem::elementForce(method_, rest_[e], gather(x, e), rot_[e]);
+    const Mat34 xe = gather(x, e);
+    Mat34 fe;
+    if (svd_) {
+      rot_[e] = fem::frameSvd(rest_[e], xe);
+      fe = fem::elementForceInFrame(rest_[e], xe, rot_[e]);
+    } else {
+      fe = fem::elementForce(method_, rest_[e], xe, rot_[e]);
+    }
     for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
   });
 }
@@ -192,10 +201,12 @@ void registerTetrahedronFEM(Registry& r) {
   s.category = "forcefield";
   s.doc = "Linear elastic tetrahedra. method=small: linear; large: corotational with the element frame built "
           "from its edges (SOFA's default); polar: corotational with the polar decomposition of the edge "
-          "matrix. The implicit solve uses R^T K0 R as SOFA does, or the exact tangent with exactTangent.";
+          "matrix; svd: polar, except that an inverted or nearly flat element (volume ratio below 1e-6) takes "
+          "the rotation of the SVD of its deformation gradient, which turns it back (SOFA's svd). The implicit solve "
+          "uses R^T K0 R as SOFA does, or the exact tangent with exactTangent (large, polar).";
   s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per tetrahedron (or a link such as @young.outputValues)"));
   s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
-  s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
+  s.add(AttrSpec::choice("method", {"large", "small", "polar", "svd"}).def("large").help("small | large | polar | svd"));
   s.add(AttrSpec::boolean("exactTangent").def("false").help("use the exact derivative of the corotational force (Newton)"));
   s.add(AttrSpec::link("topology").help("tetrahedral topology (default: the last one in the node, or the grid)"));
   s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));

@@ -44,6 +44,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
 
   MechanicalObject* state_ = nullptr;
   fem::Method method_ = fem::Method::Large;
+  bool svd_ = false;  // SOFA's svd: polar, with inverted or flat elements turned back (fem::frameSvd)
   bool exact_ = false;
   TetList tets_;
   std::vector<fem::ElementRest> rest_;

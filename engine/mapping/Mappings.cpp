@@ -1,5 +1,6 @@
-// Mappings from a deformable body to a visual surface: BarycentricMapping (the surface embedded
-// in the tetrahedra) and IdentityMapping (the surface's vertices are the body's nodes).
+// Mappings from a deformable body to points that follow it, a visual surface or a mapped state:
+// BarycentricMapping (the points embedded in the tetrahedra) and IdentityMapping (the points are
+// the body's nodes).
 #include <cstdio>
 #include <string>
 
@@ -58,9 +59,21 @@ struct LinkTarget {
   const Node* node = nullptr;
 };
 
-// Base of the mappings onto a visual model: resolves `input` (a Vec3d MechanicalObject) and
-// `output` (an OglModel/VisualModel) with SOFA's defaults.
-class VisualMapping : public Component, public Mapping {
+// Where a mapping writes: a visual surface's vertices, or the nodes of a Vec3d MechanicalObject
+// that no solver integrates (SOFA's mapped state, e.g. collision spheres), whose velocities are
+// mapped too.
+struct MappedPoints {
+  Component* component = nullptr;
+  Eigen::Matrix3Xd* x = nullptr;
+  Eigen::Matrix3Xd* v = nullptr;  // null for a visual model
+  Eigen::Matrix3Xd initial;       // the points where the mapping is set up
+  int size() const { return static_cast<int>(initial.cols()); }
+  const std::string& name() const { return component->name(); }
+};
+
+// Base of the mappings from a deformable body: resolves `input` (a Vec3d MechanicalObject) and
+// `output` (an OglModel/VisualModel or a mapped MechanicalObject) with SOFA's defaults.
+class PointMapping : public Component, public Mapping {
  public:
   using Component::Component;
 
@@ -68,11 +81,17 @@ class VisualMapping : public Component, public Mapping {
   void resolveEnds() {
     checkVec3Template(*this);
     input_ = &inputState();
-    output_ = &outputModel();
+    output_ = outputPoints();
+  }
+  // Writes map(input positions) and, for a MechanicalObject, map(input velocities).
+  template <class Map>
+  void write(const Map& map) {
+    map(input_->x, *output_.x);
+    if (output_.v) map(input_->v, *output_.v);
   }
 
   MechanicalObject* input_ = nullptr;
-  VisualModel* output_ = nullptr;
+  MappedPoints output_;
 
  private:
   LinkTarget target(const std::string& attr) {
@@ -107,32 +126,51 @@ class VisualMapping : public Component, public Mapping {
     return *m;
   }
 
-  VisualModel& outputModel() {
-    VisualModel* v = nullptr;
+  MappedPoints outputPoints() {
+    Component* out = nullptr;
     if (attrs_.isSet("output")) {
       const LinkTarget t = target("output");
       if (t.node) {
-        v = t.node->find<VisualModel>();
-        if (!v) throw error("output", "node " + t.node->path() + " has no OglModel/VisualModel");
+        out = t.node->find<VisualModel>();
+        if (!out) out = t.node->find<MechanicalObject>();
+        if (!out) throw error("output", "node " + t.node->path() + " has no OglModel/VisualModel or MechanicalObject");
       } else {
-        v = dynamic_cast<VisualModel*>(t.component);
-        if (!v)
-          throw error("output", "'" + t.component->name() + "' (" + t.component->typeName() +
-                                    ") is not a visual model: the output must be an OglModel/VisualModel");
+        out = t.component;
       }
     } else {
-      v = node().find<VisualModel>();
-      if (!v) throw error("output", "is not set and there is no OglModel/VisualModel in the node");
+      // SOFA's default output is the state of this node: its MechanicalObject, else its visual model.
+      out = node().find<MechanicalObject>();
+      if (!out) out = node().find<VisualModel>();
+      if (!out) throw error("output", "is not set and there is no OglModel/VisualModel or MechanicalObject in the node");
     }
-    scene().initComponent(*v);
-    v->setDriver(*this);
-    return *v;
+    scene().initComponent(*out);
+    MappedPoints p;
+    p.component = out;
+    if (auto* v = dynamic_cast<VisualModel*>(out)) {
+      v->setDriver(*this);
+      p.x = &v->x;
+      p.initial = v->x0;
+    } else if (auto* m = dynamic_cast<MechanicalObject*>(out)) {
+      if (m == input_) throw error("output", "is the input itself");
+      if (auto* solver = m->node().find<OdeSolver>())
+        throw error("output", "MechanicalObject '" + m->name() + "' is integrated by the " +
+                                  dynamic_cast<Component&>(*solver).typeName() + " in its node; a mapped state must be "
+                                  "in a node without an ODE solver");
+      m->setMappedBy(*this);
+      p.x = &m->x;
+      p.v = &m->v;
+      p.initial = m->x;
+    } else {
+      throw error("output", "'" + out->name() + "' (" + out->typeName() +
+                                ") is neither a visual model (OglModel/VisualModel) nor a MechanicalObject (Vec3d)");
+    }
+    return p;
   }
 };
 
-class BarycentricMapping : public VisualMapping {
+class BarycentricMapping : public PointMapping {
  public:
-  using VisualMapping::VisualMapping;
+  using PointMapping::PointMapping;
 
   void init() override {
     resolveEnds();
@@ -147,20 +185,20 @@ class BarycentricMapping : public VisualMapping {
     // when the MechanicalObject gives both `position` and `rest_position`.
     const Eigen::Matrix3Xd& nodes = attrs_.boolean("useRestPosition") ? input_->x0 : input_->x;
     const double reach = attrs_.isSet("maxDistance") ? attrs_.real("maxDistance") : meanEdgeLength(nodes, *tets);
-    embedding_ = embedInTetrahedra(nodes, *tets, output_->x0, reach);
+    embedding_ = embedInTetrahedra(nodes, *tets, output_.initial, reach);
 
     const std::string units = scene().units().str();
     const std::string unit = units.substr(0, units.find(' '));  // the length unit, for messages
     if (const int unplaced = embedding_.unplacedCount()) {
       int first = 0;
       while (embedding_.element[first] >= 0) ++first;
-      const Eigen::Vector3d p = output_->x0.col(first);
+      const Eigen::Vector3d p = output_.initial.col(first);
       const double nearest = nearestTetrahedron(nodes, *tets, p).second;
       const std::string limit = formatNumber(reach) + " " + unit +
                                 (attrs_.isSet("maxDistance") ? "" : " (the default: the mean edge length)");
       const std::string where = "(" + formatNumber(p.x()) + ", " + formatNumber(p.y()) + ", " + formatNumber(p.z()) + ")";
-      throw error("maxDistance", std::to_string(unplaced) + " of " + std::to_string(output_->size()) + " points of '" +
-                                     output_->name() + "' are farther than " + limit + " from every tetrahedron of '" +
+      throw error("maxDistance", std::to_string(unplaced) + " of " + std::to_string(output_.size()) + " points of '" +
+                                     output_.name() + "' are farther than " + limit + " from every tetrahedron of '" +
                                      input_->name() + "'; point " + std::to_string(first) + " at " + where + " is " +
                                      formatNumber(nearest) + " " + unit +
                                      " from the nearest. Check the surface's units and placement (scale3d, rotation, "
@@ -168,31 +206,35 @@ class BarycentricMapping : public VisualMapping {
     }
     if (const int outside = embedding_.extrapolatedCount()) {
       scene().addNote(loc().str() + ": note: BarycentricMapping '" + name() + "': " + std::to_string(outside) + " of " +
-                      std::to_string(output_->size()) + " points of '" + output_->name() +
+                      std::to_string(output_.size()) + " points of '" + output_.name() +
                       "' lie outside the tetrahedra (up to " + formatNumber(embedding_.distance.maxCoeff()) + " " + unit +
                       " away); they follow the nearest tetrahedron, extrapolated");
     }
   }
 
-  void apply() override { applyEmbedding(embedding_, input_->x, output_->x); }
+  void apply() override {
+    write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
+  }
 
  private:
   TetEmbedding embedding_;
 };
 
-class IdentityMapping : public VisualMapping {
+class IdentityMapping : public PointMapping {
  public:
-  using VisualMapping::VisualMapping;
+  using PointMapping::PointMapping;
 
   void init() override {
     resolveEnds();
-    if (output_->size() != input_->size())
-      throw error("output", "'" + output_->name() + "' has " + std::to_string(output_->size()) + " vertices but '" +
+    if (output_.size() != input_->size())
+      throw error("output", "'" + output_.name() + "' has " + std::to_string(output_.size()) + " vertices but '" +
                                 input_->name() + "' has " + std::to_string(input_->size()) +
                                 " nodes; IdentityMapping needs as many (BarycentricMapping embeds a different surface)");
   }
 
-  void apply() override { output_->x = input_->x; }
+  void apply() override {
+    write([](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { out = in; });
+  }
 };
 
 // The attributes every mapping declares (SOFA's BaseMapping and Mapping data).
@@ -203,8 +245,10 @@ void addMappingAttributes(ComponentSpec& s) {
       "the MechanicalObject (Vec3d) that moves the surface, or its node (\"@..\"); default: the MechanicalObject of the "
       "nearest node above"));
   s.add(AttrSpec::link("output").alias("object2").help(
-      "the OglModel/VisualModel it moves, or its node; default: the one in this node"));
-  const char* noEffect = "accepted for SOFA scenes; a visual surface carries no forces, constraints, masses or matrices";
+      "the OglModel/VisualModel or Vec3d MechanicalObject (in a node without an ODE solver) it moves, or its node; "
+      "default: the MechanicalObject of this node, else its visual model"));
+  const char* noEffect = "accepted for SOFA scenes; nothing acts on a mapped output (force fields, masses and "
+                         "constraints beside it are refused), so there is nothing to map back";
   s.add(AttrSpec::boolean("mapForces").def("true").help(noEffect));
   s.add(AttrSpec::boolean("mapConstraints").def("true").help(noEffect));
   s.add(AttrSpec::boolean("mapMasses").def("true").help(noEffect));
@@ -221,7 +265,8 @@ void registerMappings(Registry& r) {
     ComponentSpec s;
     s.name = "BarycentricMapping";
     s.category = "mapping";
-    s.doc = "Moves a visual surface with the tetrahedra of a deformable body. At init each surface point gets the "
+    s.doc = "Moves a visual surface, or a mapped MechanicalObject (positions and velocities), with the tetrahedra of a "
+            "deformable body. At init each point gets the "
             "tetrahedron that contains it (found through a bounding-volume hierarchy) and its barycentric coordinates "
             "there; every step x_point = sum w_i x_i over that tetrahedron's four nodes. A point outside every "
             "tetrahedron but within maxDistance follows the nearest one with unclamped coordinates (extrapolation, "
@@ -239,8 +284,9 @@ void registerMappings(Registry& r) {
     ComponentSpec s;
     s.name = "IdentityMapping";
     s.category = "mapping";
-    s.doc = "Moves a visual surface whose vertex i is node i of a deformable body (an OglModel without a file, or a "
-            "surface with the same vertices): x_vertex = x_node every step. The counts must match.";
+    s.doc = "Moves a visual surface or a mapped MechanicalObject whose point i is node i of a deformable body (an "
+            "OglModel without a file, or a surface with the same vertices): x_point = x_node (and v_point = v_node) "
+            "every step. The counts must match.";
     addMappingAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<IdentityMapping>(c); };
     r.add(std::move(s));

@@ -40,10 +40,12 @@ void VisualModel::init() {
   checkVec3Template(*this);
   const int sources = attrs_.isSet("filename") + attrs_.isSet("src") + attrs_.isSet("position");
   if (sources > 1) throw error("give one of `filename`, `src` or `position` (with `triangles`), not several");
-  if (attrs_.isSet("triangles") && !attrs_.isSet("position")) throw error("triangles", "needs `position`");
+  const bool faces = attrs_.isSet("triangles") || attrs_.isSet("quads");
+  if (faces && sources > 0 && !attrs_.isSet("position"))
+    throw error(attrs_.isSet("triangles") ? "triangles" : "quads", "goes with `position`, or alone (indexing the nodes of the body above)");
   if (attrs_.isSet("filename")) fromFile();
   else if (attrs_.isSet("src")) fromSource();
-  else if (attrs_.isSet("position")) fromAttributes();
+  else if (attrs_.isSet("position") || faces) fromAttributes();
   else fromContextBoundary();
   if (x0.cols() == 0) throw error("has no vertices");
   applyPlacement(attrs_, x0);
@@ -81,10 +83,16 @@ void VisualModel::fromSource() {
 }
 
 void VisualModel::fromAttributes() {
-  if (!attrs_.isSet("triangles")) throw error("triangles", "is required with `position`");
-  x0 = pointsOf(linkedReals("position"));
-  triangles = trianglesOf(linkedReals("triangles"));
-  checkTriangles(*this, "triangles", triangles, x0.cols(), "triangles");
+  if (!attrs_.isSet("triangles") && !attrs_.isSet("quads")) throw error("triangles", "(or `quads`) is required with `position`");
+  // Faces without positions index the nodes of the body above, as SOFA's OglModel quads="@grid.quads".
+  x0 = attrs_.isSet("position") ? pointsOf(linkedReals("position")) : contextState(*this).x0;
+  std::vector<double> tri = attrs_.isSet("triangles") ? linkedReals("triangles") : std::vector<double>{};
+  if (attrs_.isSet("quads")) {
+    const std::vector<double> q = linkedReals("quads");
+    for (size_t i = 0; i + 3 < q.size(); i += 4) tri.insert(tri.end(), {q[i], q[i + 1], q[i + 2], q[i], q[i + 2], q[i + 3]});
+  }
+  triangles = trianglesOf(tri);
+  checkTriangles(*this, attrs_.isSet("quads") ? "quads" : "triangles", triangles, x0.cols(), "faces");
 }
 
 void VisualModel::fromContextBoundary() {
@@ -153,14 +161,17 @@ void registerVisualModel(Registry& r) {
   s.doc = "A visual surface: triangles moved every step by a BarycentricMapping or IdentityMapping in the same node "
           "(usually a child of the deformable body's node), written by a VTKExporter in that node as a .vtp series. "
           "Vertices and triangles come from `filename` (.obj, .stl, .off, .ply), `src` (a loader's position and "
-          "triangles; a tetrahedral one gives its boundary), `position` and `triangles`, or else the boundary "
+          "triangles; a tetrahedral one gives its boundary), `position` and `triangles` or `quads` (without `position`: indexing the body's nodes), or else the boundary "
           "surface of the tetrahedra above (all nodes of the MechanicalObject there, vertex i = node i). "
           "Placement: scale3d, then rotation, then translation. No effect on the mechanics.";
   s.add(AttrSpec::string("template").def("Vec3d").help("coordinate type (Vec3d, Vec3f, ExtVec3f); computed in double precision"));
   s.add(AttrSpec::file("filename").alias("fileMesh").help("surface file (.obj, .stl, .off, .ply), relative to the scene file"));
   s.add(AttrSpec::link("src").help("a loader (or other component) with position and triangles fields"));
   s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("vertex positions x y z ..."));
-  s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("vertex indices, three per triangle (with `position`)"));
+  s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help(
+      "vertex indices, three per triangle (with `position`, or alone: the nodes of the body above)"));
+  s.add(AttrSpec::ints("quads").multipleOf(4).atLeast(0).linked().help(
+      "vertex indices, four per quad, drawn as two triangles (as `triangles`)"));
   addPointPlacementAttributes(s, "the vertices");
   const char* drawingOnly = "accepted for SOFA scenes; drawing only, not used";
   s.add(AttrSpec::string("color").help(drawingOnly));

@@ -9,6 +9,25 @@ namespace viscera {
 
 namespace {
 
+// The points of X inside any of the axis-aligned boxes (xmin ymin zmin xmax ymax zmax, repeated).
+std::vector<int> pointsInBoxes(const Eigen::Matrix3Xd& X, const std::vector<double>& b) {
+  std::vector<int> inside;
+  for (int i = 0; i < X.cols(); ++i) {
+    for (size_t k = 0; k + 6 <= b.size(); k += 6) {
+      bool in = true;
+      for (int a = 0; a < 3; ++a) {
+        double lo = std::min(b[k + a], b[k + a + 3]), hi = std::max(b[k + a], b[k + a + 3]);
+        if (X(a, i) < lo || X(a, i) > hi) in = false;
+      }
+      if (in) {
+        inside.push_back(i);
+        break;
+      }
+    }
+  }
+  return inside;
+}
+
 class FixedConstraint : public Component, public ProjectiveConstraint {
  public:
   using Component::Component;
@@ -21,7 +40,8 @@ class FixedConstraint : public Component, public ProjectiveConstraint {
       for (int i = 0; i < state_->size(); ++i) nodes_[i] = i;
       return;
     }
-    nodes_ = linkedInts("indices");
+    // SOFA's BoxConstraint: the nodes whose rest positions lie in the boxes.
+    nodes_ = spec().find("box") ? pointsInBoxes(state_->x0, attrs_.reals("box")) : linkedInts("indices");
     for (int i : nodes_)
       if (i < 0 || i >= state_->size())
         throw error("indices", "node " + std::to_string(i) + " is out of range (the MechanicalObject has " +
@@ -51,20 +71,7 @@ class BoxROI : public Component {
     } else {
       X = contextState(*this).x0;  // SOFA tests the rest positions
     }
-    const auto& b = attrs_.reals("box");
-    for (int i = 0; i < X.cols(); ++i) {
-      for (size_t k = 0; k + 6 <= b.size(); k += 6) {
-        bool in = true;
-        for (int a = 0; a < 3; ++a) {
-          double lo = std::min(b[k + a], b[k + a + 3]), hi = std::max(b[k + a], b[k + a + 3]);
-          if (X(a, i) < lo || X(a, i) > hi) in = false;
-        }
-        if (in) {
-          indices_.push_back(i);
-          break;
-        }
-      }
-    }
+    indices_ = pointsInBoxes(X, attrs_.reals("box"));
     if (indices_.empty() && attrs_.boolean("strict"))
       throw error("box", "selects no point (set strict=\"false\" to allow an empty selection)");
   }
@@ -135,6 +142,18 @@ void registerConstraints(Registry& r) {
     s.category = "constraint";
     s.doc = "Holds nodes at their positions: their rows are removed from the implicit system.";
     s.add(AttrSpec::ints("indices").def("").atLeast(0).linked().help("fixed nodes (or a link such as @box.indices)"));
+    s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<FixedConstraint>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "BoxConstraint";
+    s.category = "constraint";
+    s.doc = "Holds the nodes whose rest positions lie in the boxes at their positions (SOFA's BoxConstraint: a "
+            "BoxROI and a FixedConstraint in one).";
+    s.add(AttrSpec::reals("box").req().multipleOf(6).unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax, repeated for several boxes"));
     s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<FixedConstraint>(c); };

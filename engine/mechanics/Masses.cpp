@@ -7,6 +7,7 @@
 
 #include "core/Registry.h"
 #include "core/Scene.h"
+#include "engine/mechanics/ElementMass.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
@@ -21,21 +22,10 @@ class LumpedMass : public Component, public Mass, public ForceField {
   MechanicalObject& mstate() const override { return *state_; }
   const Eigen::VectorXd& nodeMass() const override { return m_; }
   void addForce(const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
-    const Eigen::Vector3d g = scene().gravity();
-    if (g.isZero()) return;
-    for (int i = 0; i < f.cols(); ++i) f.col(i) += m_[i] * g;
+    addGravity(m_, scene().gravity(), f);
   }
-  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
-    double e = 0;
-    for (int i = 0; i < x.cols(); ++i) e -= m_[i] * scene().gravity().dot(x.col(i));
-    return e;
-  }
-  bool field(const std::string& name, FieldValue& out) const override {
-    if (name == "vertexMass") out.values.assign(m_.data(), m_.data() + m_.size());
-    else if (name == "totalMass") out.values = {m_.sum()};
-    else return false;
-    return true;
-  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override { return gravityEnergy(m_, scene().gravity(), x); }
+  bool field(const std::string& name, FieldValue& out) const override { return massField(m_, name, out); }
 
  protected:
   MechanicalObject* state_ = nullptr;
@@ -86,49 +76,6 @@ class RigidMass : public Component {
   }
 };
 
-// A mass matrix assembled from element matrices: M_e (k x k scalars, times the 3 x 3 identity)
-// over each element's k nodes. Its rows summed are the lumped masses.
-class ElementMassMatrix {
- public:
-  // Elements as columns of node indices (4 for tetrahedra, 8 for hexahedra), one k x k matrix each.
-  void set(Eigen::MatrixXi elements, std::vector<Eigen::MatrixXd> matrices) {
-    elements_ = std::move(elements);
-    matrices_ = std::move(matrices);
-  }
-  Eigen::VectorXd rowSums(int nodes) const {
-    Eigen::VectorXd m = Eigen::VectorXd::Zero(nodes);
-    for (int e = 0; e < elements_.cols(); ++e)
-      for (int i = 0; i < elements_.rows(); ++i) m[elements_(i, e)] += matrices_[e].row(i).sum();
-    return m;
-  }
-  void pattern(std::vector<std::pair<int, int>>& pairs) const {
-    for (int e = 0; e < elements_.cols(); ++e)
-      for (int i = 0; i < elements_.rows(); ++i)
-        for (int j = i + 1; j < elements_.rows(); ++j) pairs.push_back({elements_(i, e), elements_(j, e)});
-  }
-  void addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {
-    for (int e = 0; e < elements_.cols(); ++e)
-      for (int i = 0; i < elements_.rows(); ++i) {
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (int j = 0; j < elements_.rows(); ++j) sum += matrices_[e](i, j) * dx.col(elements_(j, e));
-        out.col(elements_(i, e)) += factor * sum;
-      }
-  }
-  void addTo(BlockSparseMatrix& A, double factor) const {
-    for (int e = 0; e < elements_.cols(); ++e)
-      for (int i = 0; i < elements_.rows(); ++i)
-        for (int j = 0; j < elements_.rows(); ++j) {
-          const int slot = A.slot(elements_(i, e), elements_(j, e));
-          if (slot < 0) throw std::logic_error("mass matrix: the matrix pattern lacks the mass's node pairs");
-          A.block(slot).diagonal().array() += factor * matrices_[e](i, j);
-        }
-  }
-
- private:
-  Eigen::MatrixXi elements_;
-  std::vector<Eigen::MatrixXd> matrices_;
-};
-
 // A lumped mass that may also carry the consistent matrix whose rows it sums.
 class MatrixMass : public LumpedMass {
  public:
@@ -151,18 +98,45 @@ double tetVolume(const Eigen::Matrix3Xd& X, const TetList& T, int e) {
   return std::abs(E.determinant()) / 6.0;
 }
 
-// DiagonalMass and lumped MeshMatrixMass give the same nodal masses on tetrahedra. MeshMatrixMass
-// without lumping (SOFA's default) keeps the consistent matrix of linear tetrahedra,
-// M_e = rho V_e / 20 (1 + delta_ij) I_3 over the element's four nodes, whose rows sum to the
-// lumped masses (a quarter of rho V_e per node).
-class TetLumpedMass : public MatrixMass {
+// DiagonalMass and lumped MeshMatrixMass give the same nodal masses. MeshMatrixMass without
+// lumping (SOFA's default) keeps the consistent matrix: on linear tetrahedra
+// M_e = rho V_e / 20 (1 + delta_ij) I_3 over the element's four nodes; on hexahedra (a grid) the
+// exact matrix of trilinear elements, rho int N_i N_j dV. Its rows sum to the lumped masses (a
+// quarter, or an eighth, of rho V_e per node).
+class MeshMass : public MatrixMass {
  public:
   using MatrixMass::MatrixMass;
   void init() override {
     consistent_ = spec().find("lumping") && !attrs_.boolean("lumping");
     state_ = &contextState(*this);
-    Topology& topo = contextTopology(*this, "topology", false);
-    Eigen::VectorXd vol = lumpedVolumes(topo);
+    Topology& topo = contextTopology(*this, "topology", true);
+    // Element matrices for a unit density: their row sums are each node's share of the volume.
+    Eigen::MatrixXi elements;
+    std::vector<Eigen::MatrixXd> unit;
+    if (topo.tetrahedra().cols() > 0) {
+      const TetList& T = topo.tetrahedra();
+      lumpedVolumes(topo);  // checks the node indices
+      elements = T;
+      const Eigen::Matrix4d shape = (Eigen::Matrix4d::Ones() + Eigen::Matrix4d::Identity()) / 20.0;
+      for (int e = 0; e < T.cols(); ++e) unit.push_back(tetVolume(state_->x0, T, e) * shape);
+    } else {
+      const HexList& H = topo.hexahedra();
+      const int n = state_->size();
+      elements.resize(8, static_cast<Eigen::Index>(H.size()));
+      for (size_t e = 0; e < H.size(); ++e) {
+        Eigen::Matrix<double, 3, 8> corners;
+        for (int k = 0; k < 8; ++k) {
+          if (H[e][k] < 0 || H[e][k] >= n)
+            throw error("hexahedron " + std::to_string(e) + " refers to node " + std::to_string(H[e][k]) +
+                        ", but the MechanicalObject has " + std::to_string(n) + " nodes");
+          elements(k, static_cast<Eigen::Index>(e)) = H[e][k];
+          corners.col(k) = state_->x0.col(H[e][k]);
+        }
+        unit.push_back(hexahedronMassMatrix(corners, [](const Eigen::VectorXd&) { return 1.0; }));
+      }
+    }
+    matrix_.set(elements, unit);
+    const Eigen::VectorXd vol = matrix_.rowSums(state_->size());
     double density = 0;
     if (attrs_.isSet("totalMass")) {
       density = attrs_.real("totalMass") / vol.sum();
@@ -176,12 +150,8 @@ class TetLumpedMass : public MatrixMass {
       throw error("set massDensity or totalMass");
     }
     m_ = vol * density;
-    if (!consistent_) return;
-    const TetList& T = topo.tetrahedra();
-    const Eigen::Matrix4d unit = (Eigen::Matrix4d::Ones() + Eigen::Matrix4d::Identity()) / 20.0;
-    std::vector<Eigen::MatrixXd> Me(T.cols());
-    for (int e = 0; e < T.cols(); ++e) Me[e] = density * tetVolume(state_->x0, T, e) * unit;
-    matrix_.set(T, std::move(Me));
+    for (auto& M : unit) M *= density;
+    matrix_.set(elements, std::move(unit));
   }
 };
 
@@ -229,28 +199,14 @@ class FEMMass : public MatrixMass {
       const HexList& H = topo.hexahedra();
       if (H.empty()) throw error("template", "Vec3,Hexahedron needs a topology with hexahedra");
       elements.resize(8, static_cast<Eigen::Index>(H.size()));
-      // Corner signs of the reference cube, in SOFA's (and RegularGridTopology's) node order.
-      static const int sign[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
-                                     {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
-      const double g = 1.0 / std::sqrt(3.0);
       for (size_t e = 0; e < H.size(); ++e) {
         Eigen::VectorXi nodes(8);
-        for (int k = 0; k < 8; ++k) nodes[k] = elements(k, e) = checkedNode(H[e][k], n);
-        Eigen::MatrixXd M = Eigen::MatrixXd::Zero(8, 8);
-        for (int q = 0; q < 8; ++q) {
-          const Eigen::Vector3d xi(sign[q][0] * g, sign[q][1] * g, sign[q][2] * g);
-          Eigen::VectorXd N(8);
-          Eigen::Matrix<double, 8, 3> dN;
-          for (int k = 0; k < 8; ++k) {
-            const double a = 1 + sign[k][0] * xi[0], b = 1 + sign[k][1] * xi[1], c = 1 + sign[k][2] * xi[2];
-            N[k] = a * b * c / 8;
-            dN.row(k) << sign[k][0] * b * c / 8, sign[k][1] * a * c / 8, sign[k][2] * a * b / 8;
-          }
-          Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
-          for (int k = 0; k < 8; ++k) J += X.col(nodes[k]) * dN.row(k);
-          const double w = std::abs(J.determinant()) * densityAt(nodes, N);  // Gauss weights are 1
-          M += w * N * N.transpose();
+        Eigen::Matrix<double, 3, 8> corners;
+        for (int k = 0; k < 8; ++k) {
+          nodes[k] = elements(k, e) = checkedNode(H[e][k], n);
+          corners.col(k) = X.col(nodes[k]);
         }
+        const Eigen::MatrixXd M = hexahedronMassMatrix(corners, [&](const Eigen::VectorXd& N) { return densityAt(nodes, N); });
         Me.push_back(M);
       }
     } else {
@@ -309,20 +265,23 @@ void registerMasses(Registry& r) {
     s.name = name;
     s.category = "mass";
     s.doc = std::string(name) == "DiagonalMass"
-                ? "Lumped mass from the tetrahedra: each node receives a quarter of the mass of each tetrahedron it "
-                  "belongs to (density x rest volume). totalMass rescales the density. Applies gravity."
+                ? "Lumped mass from the tetrahedra (or, without them, the hexahedra of a grid): each node receives a "
+                  "quarter (an eighth) of the mass of each element it belongs to (density x rest volume). totalMass "
+                  "rescales the density. Applies gravity."
                 : "Mass matrix of the tetrahedra (density x rest volume): the consistent matrix rho V / 20 (1 + delta_ij) "
                   "of linear elements, as SOFA, or with lumping=\"true\" its row sums on the diagonal (as DiagonalMass). "
-                  "totalMass rescales the density. Applies gravity.";
+                  "On hexahedra (a grid, when there are no tetrahedra) the exact matrix of trilinear elements; SOFA "
+                  "uses rho V / 20 on the diagonal and rho V / 40 on the edges there, a matrix that is not positive "
+                  "definite. totalMass rescales the density. Applies gravity.";
     s.add(AttrSpec::real("massDensity").above(0).unit(Dimension::density()).help("mass per volume"));
     s.add(AttrSpec::real("totalMass").above(0).unit(Dimension::mass()).help("mass of the whole body (wins over massDensity)"));
     s.add(AttrSpec::real("vertexMass").above(0).unit(Dimension::mass()).help("the same mass for every node"));
     if (std::string(name) == "MeshMatrixMass")
       s.add(AttrSpec::boolean("lumping").def("false").help("lump the mass on the diagonal; false keeps the consistent mass matrix (as SOFA)"));
     s.add(AttrSpec::boolean("computeMassOnRest").def("true").help("masses from rest positions (always)"));
-    s.add(AttrSpec::link("topology").help("the tetrahedral topology (default: the one in the node)"));
+    s.add(AttrSpec::link("topology").help("the tetrahedral (or hexahedral) topology (default: the nearest in the node or above)"));
     s.add(massLink());
-    s.factory = [](BuildContext& c) { return std::make_unique<TetLumpedMass>(c); };
+    s.factory = [](BuildContext& c) { return std::make_unique<MeshMass>(c); };
     r.add(std::move(s));
   }
   {

@@ -5,6 +5,7 @@
 
 #include "core/Registry.h"
 #include "core/Scene.h"
+#include "engine/Roles.h"
 #include "engine/rigid/RigidObject.h"
 
 namespace viscera {
@@ -25,10 +26,15 @@ void MechanicalObject::init() {
   if (attrs_.isSet("position")) {
     x = toPoints(*this, "position", linkedReals("position"));
   } else if (attrs_.isSet("src")) {
-    auto* t = dynamic_cast<Topology*>(linkedComponent("src"));
-    if (!t) throw error("src", "does not link to a loader or topology");
-    scene().initComponent(dynamic_cast<Component&>(*t));
-    x = t->points();
+    Component* src = linkedComponent("src");
+    FieldValue points;
+    if (auto* t = dynamic_cast<Topology*>(src)) {
+      x = t->points();
+    } else if (src->field("position", points)) {  // e.g. a SphereLoader: centres without a topology
+      x = toPoints(*this, "src", points.values);
+    } else {
+      throw error("src", "does not link to a loader or topology");
+    }
     if (x.cols() == 0) throw error("src", "links to a component with no points");
   } else {
     // As SOFA: positions come from the first topology in the context that carries points.
@@ -51,6 +57,10 @@ void MechanicalObject::init() {
     if (x0.cols() != x.cols())
       throw error("rest_position", "has " + std::to_string(x0.cols()) + " points, position has " + std::to_string(x.cols()));
   }
+  for (double f : attrs_.reals("externalForce"))
+    if (f != 0) throw error("externalForce", "a non-zero external force is not supported; use a ConstantForceField");
+  // SOFA's restScale: rest positions scaled about the origin, a body pre-stretched (< 1: shrunk rest).
+  x0 *= attrs_.real("restScale");
   v = Eigen::Matrix3Xd::Zero(3, x.cols());
   if (attrs_.isSet("velocity")) {
     auto vv = linkedReals("velocity");
@@ -64,6 +74,20 @@ void MechanicalObject::init() {
     }
   }
   f = Eigen::Matrix3Xd::Zero(3, x.cols());
+}
+
+void MechanicalObject::setMappedBy(const Component& mapping) {
+  if (mappedBy_ && mappedBy_ != &mapping)
+    throw mapping.error("output", "MechanicalObject '" + name() + "' is already the output of " + mappedBy_->typeName() +
+                                      " '" + mappedBy_->name() + "'; give each mapped state one mapping");
+  // Forces on a mapped state are not carried back to its input here: refuse what would be ignored.
+  for (const auto& c : node().components())
+    if (dynamic_cast<const ForceField*>(c.get()) || dynamic_cast<const Mass*>(c.get()) ||
+        dynamic_cast<const ProjectiveConstraint*>(c.get()))
+      throw mapping.error("output", "MechanicalObject '" + name() + "' is mapped, but the " + c->typeName() + " '" +
+                                        c->name() + "' in its node acts on it; forces and constraints on a mapped state "
+                                        "are not carried back to the input (put them on the input's node)");
+  mappedBy_ = &mapping;
 }
 
 void MechanicalObject::loadState(StateReader& in) {
@@ -170,6 +194,12 @@ void registerMechanicalObject(Registry& r) {
   s.add(AttrSpec::reals("rest_position").unit(Dimension::length()).linked().help("rest positions (default: initial positions; Vec3d only)"));
   s.add(AttrSpec::reals("velocity").unit(Dimension::velocity()).linked().help("initial velocity: one for all nodes or one per node (Rigid3d: vx vy vz wx wy wz)"));
   addPointPlacementAttributes(s, "the initial positions");
+  s.add(AttrSpec::real("restScale").def("1").above(0).help(
+      "scale of the rest positions about the origin (Vec3d; below 1 the body starts stretched: SOFA's pre-tension)"));
+  // SOFA writes these work vectors into saved scenes; they are recomputed every step there too.
+  for (const char* work : {"force", "derivX", "free_position", "free_velocity"})
+    s.add(AttrSpec::reals(work).help("accepted for SOFA scenes: recomputed every step, so a value given has no effect (as in SOFA)"));
+  s.add(AttrSpec::reals("externalForce").help("SOFA's external force vector: only zeros are accepted (a non-zero value is not supported)"));
   s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
     if (isRigidTemplate(ctx.attrs().str("template"))) return std::make_unique<RigidObject>(ctx);
     return std::make_unique<MechanicalObject>(ctx);

@@ -25,11 +25,18 @@ class MechanicalObject : public Component, public Stateful {
   void loadState(StateReader& in) override;
 
   int size() const { return static_cast<int>(x.cols()); }
+  // A mapped state: its x and v are written by `mapping` every step, not integrated. One mapping
+  // per state.
+  void setMappedBy(const Component& mapping);
+  const Component* mappedBy() const { return mappedBy_; }
 
   Eigen::Matrix3Xd x;   // positions, 3 x #nodes
   Eigen::Matrix3Xd v;   // velocities
   Eigen::Matrix3Xd x0;  // rest positions
   Eigen::Matrix3Xd f;   // last total force (for outputs)
+
+ private:
+  const Component* mappedBy_ = nullptr;
 };
 
 void registerMechanicalObject(Registry& r);

@@ -5,6 +5,8 @@
 // t = (ks (d - L0) + kd u.(v_b - v_a)) / d, and df_a/dx_a = -J.
 #include <Eigen/Dense>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
@@ -29,7 +31,8 @@ class MeshSpringForceField : public Component, public ForceField {
     const Eigen::Matrix3Xd& X = state_->x0;
     // The element kinds in SOFA's order: a pair keeps the stiffness of the first kind that lists it.
     auto value = [&](const char* kind, const char* fallback) {
-      return attrs_.isSet(kind) ? attrs_.real(kind) : attrs_.isSet(fallback) ? attrs_.real(fallback) : 0.0;
+      // A kind's own value, else the common one (given, or its default), else none.
+      return attrs_.isSet(kind) ? attrs_.real(kind) : attrs_.get(fallback).nums.empty() ? 0.0 : attrs_.real(fallback);
     };
     std::set<std::pair<int, int>> seen;
     auto add = [&](int a, int b, double ks, double kd) {
@@ -39,13 +42,15 @@ class MeshSpringForceField : public Component, public ForceField {
     };
     Topology* tets = nullptr;
     Topology* hexa = nullptr;
+    const bool gridOnly = typeName() == "RegularGridSpringForceField";
     for (const Node* n = &node(); n && !tets && !hexa; n = n->parent())
       for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
         if (auto* t = dynamic_cast<Topology*>(it->get())) {
           scene().initComponent(**it);
-          if (!tets && t->tetrahedra().cols() > 0) tets = t;
+          if (!tets && !gridOnly && t->tetrahedra().cols() > 0) tets = t;
           if (!hexa && !t->hexahedra().empty()) hexa = t;
         }
+    if (gridOnly && !hexa) throw error("no grid (hexahedra) in its node or above");
     if (!tets && !hexa) throw error("no topology with tetrahedra or hexahedra in its node or above");
     const int n = state_->size();
     auto check = [&](int i) {
@@ -142,22 +147,36 @@ class MeshSpringForceField : public Component, public ForceField {
 }  // namespace
 
 void registerSprings(Registry& r) {
-  ComponentSpec s;
-  s.name = "MeshSpringForceField";
-  s.category = "forcefield";
-  s.doc = "Springs on the node pairs of the mesh's elements, each with its rest length, as SOFA's: on tetrahedra "
-          "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes). A kind "
-          "takes its own stiffness and damping when given, else `stiffness` and `damping`; a pair keeps the first "
-          "kind that lists it. Damping acts along the spring and stays out of the implicit matrix, as in SOFA.";
-  s.add(AttrSpec::real("stiffness").atLeast(0).unit(Dimension::stiffness()).help("stiffness of every kind not given its own"));
-  s.add(AttrSpec::real("damping").atLeast(0).unit({0, 1, -1}).help("damping (force per speed) of every kind not given its own"));
-  for (const char* kind : {"lines", "triangles", "quads", "tetras", "cubes"}) {
-    s.add(AttrSpec::real(std::string(kind) + "Stiffness").atLeast(0).unit(Dimension::stiffness()).help(std::string("stiffness of the ") + kind + "' springs"));
-    s.add(AttrSpec::real(std::string(kind) + "Damping").atLeast(0).unit({0, 1, -1}).help(std::string("damping of the ") + kind + "' springs"));
+  for (const char* name : {"MeshSpringForceField", "RegularGridSpringForceField"}) {
+    const bool grid = std::string(name) == "RegularGridSpringForceField";
+    ComponentSpec s;
+    s.name = name;
+    s.category = "forcefield";
+    s.doc = grid ? "Springs along a grid, as SOFA's: on its hexahedra the edges (lines), face diagonals (quads) and body "
+                   "diagonals (cubes), each with its rest length. Every kind defaults to stiffness 100 and damping 5 "
+                   "(SOFA's); `stiffness` and `damping` set all kinds at once. Damping acts along the spring and stays "
+                   "out of the implicit matrix, as in SOFA."
+                 : "Springs on the node pairs of the mesh's elements, each with its rest length, as SOFA's: on tetrahedra "
+                   "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes). A kind "
+                   "takes its own stiffness and damping when given, else `stiffness` and `damping`; a pair keeps the first "
+                   "kind that lists it. Damping acts along the spring and stays out of the implicit matrix, as in SOFA.";
+    AttrSpec k = AttrSpec::real("stiffness").atLeast(0).unit(Dimension::stiffness()).help("stiffness of every kind not given its own");
+    AttrSpec d = AttrSpec::real("damping").atLeast(0).unit({0, 1, -1}).help("damping (force per speed) of every kind not given its own");
+    if (grid) {
+      k.def("100");
+      d.def("5");
+    }
+    s.add(k);
+    s.add(d);
+    for (const char* kind : grid ? std::vector<const char*>{"lines", "quads", "cubes"}
+                                 : std::vector<const char*>{"lines", "triangles", "quads", "tetras", "cubes"}) {
+      s.add(AttrSpec::real(std::string(kind) + "Stiffness").atLeast(0).unit(Dimension::stiffness()).help(std::string("stiffness of the ") + kind + "' springs"));
+      s.add(AttrSpec::real(std::string(kind) + "Damping").atLeast(0).unit({0, 1, -1}).help(std::string("damping of the ") + kind + "' springs"));
+    }
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
+    r.add(std::move(s));
   }
-  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
-  s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
-  r.add(std::move(s));
 }
 
 }  // namespace viscera

@@ -9,6 +9,9 @@ namespace viscera {
 bool isRigidTemplate(const std::string& t) { return t == "Rigid3d" || t == "Rigid3" || t == "Rigid3f"; }
 
 void RigidObject::init() {
+  if (attrs_.real("restScale") != 1.0) throw error("restScale", "applies to Vec3d objects; a rigid frame has no rest shape to scale");
+  for (double f : attrs_.reals("externalForce"))
+    if (f != 0) throw error("externalForce", "a non-zero external force is not supported");
   std::vector<double> pos = attrs_.isSet("position") ? linkedReals("position") : std::vector<double>{0, 0, 0, 0, 0, 0, 1};
   if (pos.size() != 7)
     throw error("position", "a Rigid3d object holds one frame: 7 numbers x y z qx qy qz qw (got " +

@@ -9,7 +9,8 @@
 
 namespace viscera {
 
-Eigen::Matrix3Xd gridPoints(const std::array<int, 3>& n, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+Eigen::Matrix3Xd gridPoints(const std::array<int, 3>& n, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                            const Eigen::Vector3d* p0) {
   Eigen::Matrix3Xd p(3, n[0] * n[1] * n[2]);
   Eigen::Vector3d step, origin = lo;
   for (int a = 0; a < 3; ++a) {
@@ -17,6 +18,7 @@ Eigen::Matrix3Xd gridPoints(const std::array<int, 3>& n, const Eigen::Vector3d& 
     // One node on an axis sits at the middle of [lo, hi] (x and y) as in SOFA.
     if (n[a] == 1 && a < 2) origin[a] = 0.5 * (lo[a] + hi[a]);
   }
+  if (p0) origin = *p0;
   int idx = 0;
   for (int k = 0; k < n[2]; ++k)
     for (int j = 0; j < n[1]; ++j)
@@ -73,7 +75,7 @@ TetList elementTetrahedra(const Topology& topo) {
   return splitHexahedra(topo.hexahedra(), cells[0], cells[1], true, false);
 }
 
-Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa, const Eigen::Matrix3Xd& X) {
+Eigen::Matrix<int, 4, Eigen::Dynamic> hexahedronBoundaryQuads(const HexList& hexa, const Eigen::Matrix3Xd& X) {
   // Outward faces of a hexahedron whose nodes are (0,0,0) (1,0,0) (1,1,0) (0,1,0), then z = 1.
   static const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
   std::map<std::array<int, 4>, std::pair<int, std::array<int, 4>>> seen;  // sorted corners -> count, face
@@ -94,13 +96,22 @@ Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList&
   std::vector<std::array<int, 4>> boundary;
   for (const auto& [key, entry] : seen)
     if (entry.first == 1) boundary.push_back(entry.second);
-  Eigen::Matrix<int, 3, Eigen::Dynamic> tris(3, 2 * boundary.size());
-  for (size_t i = 0; i < boundary.size(); ++i) {
-    const auto& q = boundary[i];
-    tris.col(2 * i) << q[0], q[1], q[2];
-    tris.col(2 * i + 1) << q[0], q[2], q[3];
+  Eigen::Matrix<int, 4, Eigen::Dynamic> quads(4, boundary.size());
+  for (size_t i = 0; i < boundary.size(); ++i) quads.col(static_cast<Eigen::Index>(i)) << boundary[i][0], boundary[i][1], boundary[i][2], boundary[i][3];
+  return quads;
+}
+
+Eigen::Matrix<int, 3, Eigen::Dynamic> quadTriangles(const Eigen::Matrix<int, 4, Eigen::Dynamic>& quads) {
+  Eigen::Matrix<int, 3, Eigen::Dynamic> tris(3, 2 * quads.cols());
+  for (Eigen::Index i = 0; i < quads.cols(); ++i) {
+    tris.col(2 * i) << quads(0, i), quads(1, i), quads(2, i);
+    tris.col(2 * i + 1) << quads(0, i), quads(2, i), quads(3, i);
   }
   return tris;
+}
+
+Eigen::Matrix<int, 3, Eigen::Dynamic> hexahedronBoundaryTriangles(const HexList& hexa, const Eigen::Matrix3Xd& X) {
+  return quadTriangles(hexahedronBoundaryQuads(hexa, X));
 }
 
 }  // namespace viscera

@@ -9,6 +9,7 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
+#include "io/mesh/Spheres.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/InputCache.h"
 #include "io/surface/SurfaceMesh.h"
@@ -41,7 +42,10 @@ class RegularGridTopology : public Component, public Topology {
       throw error("n", m.str());
     }
     for (int a = 0; a < 3; ++a) n_[a] = n[a];
-    points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]));
+    Eigen::Vector3d p0;
+    if (attrs_.isSet("p0")) p0 = Eigen::Vector3d(attrs_.reals("p0")[0], attrs_.reals("p0")[1], attrs_.reals("p0")[2]);
+    points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]),
+                         attrs_.isSet("p0") ? &p0 : nullptr);
     hexa_ = gridHexahedra(n_);
   }
   const Eigen::Matrix3Xd& points() const override { return points_; }
@@ -130,62 +134,80 @@ class TetrahedronSetTopologyContainer : public Component, public Topology {
   bool filled_ = false;
 };
 
-// Triangles of a surface: from a loader (`src`), explicit lists, or Tetra2TriangleTopologicalMapping
-// (the boundary of a tetrahedral body, SOFA's collision surface). It carries no tetrahedra, so
-// components that need a volume look past it.
-class TriangleSetTopologyContainer : public Component, public Topology {
+// Faces of a surface, K corners each (triangles or quads): from a loader (`src`), explicit lists,
+// or a topological mapping (the boundary of a volume: SOFA's collision and visual surfaces). It
+// carries no tetrahedra, so components that need a volume look past it.
+template <int K>
+class SurfaceSetContainer : public Component, public Topology {
  public:
+  using Faces = Eigen::Matrix<int, K, Eigen::Dynamic>;
   using Component::Component;
+  static const char* facesName() { return K == 3 ? "triangles" : "quads"; }
   void init() override {
     initFillersOf(*this);
     if (filled_) return;
+    if constexpr (K == 3) {
+      if (attrs_.isSet("fileTopology") && !attrs_.str("fileTopology").empty()) {
+        const std::string path = scene().resolvePath(attrs_.str("fileTopology"));
+        if (!std::filesystem::exists(path)) throw error("fileTopology", "surface file '" + path + "' does not exist");
+        try {
+          const auto surface = io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
+          points_ = surface->points;
+          faces_ = surface->triangles;
+        } catch (const Error& e) {
+          throw error("fileTopology", e.what());
+        }
+      }
+    }
     if (attrs_.isSet("src")) {
       auto* c = linkedComponent("src");
-      FieldValue p, t;
+      FieldValue p, f;
       if (!c || !c->field("position", p)) throw error("src", "does not link to a loader or topology with positions");
       points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.values.data(), 3, static_cast<Eigen::Index>(p.values.size() / 3));
-      if (c->field("triangles", t)) setTriangles(t.values);
+      if (c->field(facesName(), f)) setFaces(f.values);
     }
     if (attrs_.isSet("position")) {
       auto p = linkedReals("position");
       points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
     }
-    if (attrs_.isSet("triangles")) {
-      auto t = linkedInts("triangles");
-      setTriangles(std::vector<double>(t.begin(), t.end()));
+    if (attrs_.isSet(facesName())) {
+      auto t = linkedInts(facesName());
+      setFaces(std::vector<double>(t.begin(), t.end()));
     }
-    // Without points of its own the triangles index the body's nodes (checked where they are used).
-    for (Eigen::Index i = 0; i < tris_.size(); ++i)
-      if (points_.cols() > 0 && tris_.data()[i] >= points_.cols())
-        throw error("triangles", "refer to node " + std::to_string(tris_.data()[i]) + ", but there are " +
+    // Without points of its own the faces index the body's nodes (checked where they are used).
+    for (Eigen::Index i = 0; i < faces_.size(); ++i)
+      if (points_.cols() > 0 && faces_.data()[i] >= points_.cols())
+        throw error(facesName(), "refer to node " + std::to_string(faces_.data()[i]) + ", but there are " +
                                      std::to_string(points_.cols()) + " points");
   }
-  void fill(const Eigen::Matrix3Xd& points, const io::TriangleList& tris) {
+  void fill(const Eigen::Matrix3Xd& points, const Faces& faces) {
     points_ = points;
-    tris_ = tris;
+    faces_ = faces;
     filled_ = true;
   }
   const Eigen::Matrix3Xd& points() const override { return points_; }
   const TetList& tetrahedra() const override { return kNoTets; }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
-    else if (name == "triangles") out.values.assign(tris_.data(), tris_.data() + tris_.size());
+    else if (name == facesName()) out.values.assign(faces_.data(), faces_.data() + faces_.size());
     else return false;
     return true;
   }
 
  private:
-  void setTriangles(const std::vector<double>& v) {
-    tris_.resize(3, static_cast<Eigen::Index>(v.size() / 3));
-    for (size_t i = 0; i < 3 * static_cast<size_t>(tris_.cols()); ++i) {
-      if (!(v[i] >= 0 && v[i] < 2147483647.0)) throw error("triangles", "node index " + formatNumber(v[i]) + " is out of range");
-      tris_.data()[i] = static_cast<int>(v[i]);
+  void setFaces(const std::vector<double>& v) {
+    faces_.resize(K, static_cast<Eigen::Index>(v.size() / K));
+    for (size_t i = 0; i < K * static_cast<size_t>(faces_.cols()); ++i) {
+      if (!(v[i] >= 0 && v[i] < 2147483647.0)) throw error(facesName(), "node index " + formatNumber(v[i]) + " is out of range");
+      faces_.data()[i] = static_cast<int>(v[i]);
     }
   }
   Eigen::Matrix3Xd points_;
-  io::TriangleList tris_;
+  Faces faces_;
   bool filled_ = false;
 };
+using TriangleSetTopologyContainer = SurfaceSetContainer<3>;
+using QuadSetTopologyContainer = SurfaceSetContainer<4>;
 
 // Writes the boundary triangles of a tetrahedral topology (outward, as io::boundaryTriangles) into
 // a TriangleSetTopologyContainer: SOFA's way of giving a volume its collision or visual surface.
@@ -208,6 +230,27 @@ class Tetra2TriangleTopologicalMapping : public TopologicalMapping {
     io::TriangleList tris = io::boundaryTriangles(T, points);
     if (attrs_.boolean("flipNormals")) tris.row(1).swap(tris.row(2));
     out->fill(points, tris);
+  }
+};
+
+// Writes the boundary quads of a hexahedral topology (a grid) into a QuadSetTopologyContainer.
+class Hexa2QuadTopologicalMapping : public TopologicalMapping {
+ public:
+  using TopologicalMapping::TopologicalMapping;
+  void init() override {
+    auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
+    if (!in || in->hexahedra().empty()) throw error("input", "does not link to a topology with hexahedra");
+    auto* out = dynamic_cast<QuadSetTopologyContainer*>(&output());
+    if (!out) throw error("output", "does not link to a QuadSetTopologyContainer");
+    const Eigen::Matrix3Xd points = in->points().cols() > 0 ? in->points() : contextState(*this).x0;
+    for (const auto& h : in->hexahedra())
+      for (int v : h)
+        if (v < 0 || v >= points.cols())
+          throw error("input", "has hexahedra that refer to node " + std::to_string(v) + ", but there are " +
+                                   std::to_string(points.cols()) + " points");
+    Eigen::Matrix<int, 4, Eigen::Dynamic> quads = hexahedronBoundaryQuads(in->hexahedra(), points);
+    if (attrs_.boolean("flipNormals")) quads.row(1).swap(quads.row(3));
+    out->fill(points, quads);
   }
 };
 
@@ -285,6 +328,36 @@ class SurfaceLoader : public Component, public Topology {
   io::SurfaceMesh surface_;
 };
 
+// Spheres from a .sph file: their centres (`position`) and radii (`listRadius`), for a
+// MechanicalObject and a SphereCollisionModel beside it (SOFA links them with "@[-1].position").
+class SphereLoader : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    const std::string path = scene().resolvePath(attrs_.str("filename"));
+    if (!std::filesystem::exists(path)) throw error("filename", "sphere file '" + path + "' does not exist");
+    try {
+      spheres_ = *io::cachedRead<io::SphereSet>(path, [](const std::string& p) { return io::readSpheres(p); });
+    } catch (const Error& e) {
+      throw error("filename", e.what());
+    }
+    const auto& k = attrs_.reals("scale3d");
+    if (k[0] != k[1] || k[1] != k[2])
+      throw error("scale3d", "spheres stay spheres only under a uniform scale (one factor for x, y and z)");
+    applyPlacement(attrs_, spheres_.centres);
+    for (double& r : spheres_.radii) r *= std::abs(k[0]);
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(spheres_.centres.data(), spheres_.centres.data() + spheres_.centres.size());
+    else if (name == "listRadius") out.values = spheres_.radii;
+    else return false;
+    return true;
+  }
+
+ private:
+  io::SphereSet spheres_;
+};
+
 // What every mesh loader declares: the file, its placement and SOFA's normal flip.
 void addLoaderAttributes(ComponentSpec& s) {
   s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file or found along the data search path"));
@@ -303,6 +376,8 @@ void registerTopologies(Registry& r) {
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per axis (at most 10 million nodes in all)"));
     s.add(AttrSpec::reals("min", 3).def("0 0 0").unit(Dimension::length()).help("lower corner"));
     s.add(AttrSpec::reals("max", 3).def("1 1 1").unit(Dimension::length()).help("upper corner"));
+    s.add(AttrSpec::reals("p0", 3).unit(Dimension::length()).help(
+        "the first node, in place of `min` (SOFA's p0: the grid keeps the spacing of [min, max] and starts here)"));
     s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };
     r.add(std::move(s));
   }
@@ -329,7 +404,33 @@ void registerTopologies(Registry& r) {
     s.add(AttrSpec::link("src").help("a loader to take points and triangles from"));
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
     s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("node indices, three per triangle"));
+    s.add(AttrSpec::file("fileTopology").help("a surface file (.obj, .stl, .off, .ply) to take points and triangles from"));
     s.factory = [](BuildContext& c) { return std::make_unique<TriangleSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "QuadSetTopologyContainer";
+    s.aliases = {"QuadSetTopology"};
+    s.category = "topology";
+    s.doc = "Holds surface quads: from a loader (`src`), explicit lists, or a Hexa2QuadTopologicalMapping writing the "
+            "boundary of a hexahedral body to it (e.g. a grid's visual surface). It has no volume elements.";
+    s.add(AttrSpec::link("src").help("a loader to take points and quads from"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
+    s.add(AttrSpec::ints("quads").multipleOf(4).atLeast(0).linked().help("node indices, four per quad"));
+    s.factory = [](BuildContext& c) { return std::make_unique<QuadSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "Hexa2QuadTopologicalMapping";
+    s.category = "topology";
+    s.doc = "Writes the boundary quads of `input`'s hexahedra (outward) into the QuadSetTopologyContainer `output`, "
+            "with the same points.";
+    s.add(AttrSpec::link("input").req().help("topology with hexahedra (e.g. a RegularGridTopology)"));
+    s.add(AttrSpec::link("output").req().help("the QuadSetTopologyContainer to fill"));
+    s.add(AttrSpec::boolean("flipNormals").def("false").help("reverse the orientation of the quads (inward)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<Hexa2QuadTopologicalMapping>(c); };
     r.add(std::move(s));
   }
   {
@@ -369,6 +470,17 @@ void registerTopologies(Registry& r) {
     s.factory = [](BuildContext& c) { return std::make_unique<MeshLoader>(c); };
     r.add(std::move(s));
   }
+  {
+    ComponentSpec s;
+    s.name = "SphereLoader";
+    s.category = "loader";
+    s.doc = "Reads spheres from a SOFA .sph file; fields position (the centres) and listRadius (the radii, times the "
+            "scale). Feeds a MechanicalObject and a SphereCollisionModel, as in SOFA's liver scenes.";
+    s.add(AttrSpec::file("filename").req().help(".sph file, relative to the scene file or found along the data search path"));
+    addPointPlacementAttributes(s, "the centres");
+    s.factory = [](BuildContext& c) { return std::make_unique<SphereLoader>(c); };
+    r.add(std::move(s));
+  }
   for (const char* name : {"MeshOBJLoader", "MeshSTLLoader", "MeshOffLoader"}) {
     ComponentSpec s;
     s.name = name;
@@ -377,6 +489,8 @@ void registerTopologies(Registry& r) {
             "; polygons are split into triangles); fields position and triangles. Feeds a MechanicalObject (`src` or its "
             "node), an OglModel or a collision surface.";
     addLoaderAttributes(s);
+    s.add(AttrSpec::boolean("triangulate").def("false").help(
+        "accepted for SOFA scenes: polygons are always split into triangles here (SOFA splits them only when true)"));
     s.factory = [](BuildContext& c) { return std::make_unique<SurfaceLoader>(c); };
     r.add(std::move(s));
   }

@@ -1,7 +1,8 @@
 // Per-element kernels of the linear tetrahedron (engine/fem/TetKernel.h) checked against
 // independent definitions: forces against finite differences of the energy, stiffnesses and
 // tangents against finite differences of the force, the corotational stiffness against a
-// textbook B^T D B built here, rigid-motion invariance and the polar decomposition.
+// textbook B^T D B built here, rigid-motion invariance, the polar decomposition and the svd frame
+// of inverted elements.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -379,4 +380,33 @@ TEST(FemKernel, FramesAndTheirDerivatives) {
         }
     }
   }
+}
+
+// SOFA's svd frame: the polar frame while the element keeps its orientation; an inverted element
+// (here the apex pushed through its base) gets a proper rotation instead of the polar reflection,
+// so its force pushes the apex back out. A rigid motion of the inverted state changes nothing
+// but the frame.
+TEST(TetKernel, SvdFrameTurnsAnInvertedElementBack) {
+  Mat34 X;
+  X << 0, 1, 0, 0,  //
+      0, 0, 1, 0,   //
+      0, 0, 0, 1;
+  const fem::ElementRest rest = fem::restElement(Method::Polar, X, fem::Lame::fromYoungPoisson(1000, 0.3));
+  Mat34 x = X;
+  x(2, 3) = 0.4;  // squashed, not inverted
+  x(0, 1) = 1.2;
+  EXPECT_LT((fem::frameSvd(rest, x) - fem::framePolar(x)).norm(), 1e-14);
+  x(2, 3) = -0.3;  // the apex through the base: J = -0.3
+  const Matrix3d Rpolar = fem::framePolar(x), Rsvd = fem::frameSvd(rest, x);
+  EXPECT_NEAR(Rpolar.determinant(), -1.0, 1e-12);
+  EXPECT_NEAR(Rsvd.determinant(), 1.0, 1e-12);
+  EXPECT_LT((Rsvd * Rsvd.transpose() - Matrix3d::Identity()).norm(), 1e-12);
+  const Mat34 f = fem::elementForceInFrame(rest, x, Rsvd);
+  EXPECT_GT(f(2, 3), 0.0) << f;                        // the apex is pushed back up
+  EXPECT_LT(f.rowwise().sum().norm(), 1e-9 * f.norm());  // no net force
+  // A rigid rotation Q of the inverted state: the frame becomes R Q^T and the force Q f.
+  const Matrix3d Q = Eigen::AngleAxisd(0.7, Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const Mat34 xr = Q * x;
+  EXPECT_LT((fem::frameSvd(rest, xr) - Rsvd * Q.transpose()).norm(), 1e-12);
+  EXPECT_LT((fem::elementForceInFrame(rest, xr, fem::frameSvd(rest, xr)) - Q * f).norm(), 1e-9 * f.norm());
 }

@@ -1,6 +1,7 @@
 // SOFA scenes as SOFA users write them: <include>, files found along SOFA's data search path, the
 // legacy attribute names SOFA still reads (dx dy dz, rx ry rz, scale, nx ny nz, xmin ... zmax),
-// MechanicalObject src="@loader", surface loaders, and dt/gravity on sub-nodes.
+// MechanicalObject src="@loader", surface loaders, dt/gravity on sub-nodes, positional links and
+// spheres mapped on a body.
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -247,4 +248,85 @@ TEST(SofaSceneForms, HostileFormsAreClearErrors) {
   <TriangleCollisionModel/>
 </Node>)");
   EXPECT_NE(e.find("whose 5 points are not the nodes of MechanicalObject 'dofs' (4)"), std::string::npos) << e;
+}
+
+// SOFA's liver scenes: spheres from a .sph file, found through positional links ("@[-1]": the
+// object written just before), on a MechanicalObject that a BarycentricMapping moves with the body.
+TEST(SofaSceneForms, SpheresMappedOnABodyFollowItThroughPositionalLinks) {
+  TempDir dir;
+  write(dir / "tet.vtk", kTetMesh);
+  // Sphere 0 at the tetrahedron's centroid; sphere 1 at node 3.
+  write(dir / "body.sph", "sph 1.0\nnums 2\n# a comment\nsphe 1 0.25 0.25 0.25 0.1\nsphe 1 0 0 1 0.2\n");
+  const std::string body = R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <CollisionPipeline/><DiscreteIntersection/><CollisionResponse/>
+  <Node name="body">
+    <EulerImplicitSolver/><CGLinearSolver iterations="100" tolerance="1e-12" threshold="1e-12"/>
+    <MeshVTKLoader name="loader" filename="tet.vtk"/>
+    <TetrahedronSetTopologyContainer src="@loader"/>
+    <MechanicalObject name="dofs" src="@loader"/>
+    <UniformMass totalMass="1"/>
+    <TetrahedronFEMForceField youngModulus="100" poissonRatio="0.3"/>
+    <FixedConstraint indices="0 1 2"/>
+    <Node name="Surf">
+      SURF
+    </Node>
+  </Node>
+</Node>)";
+  auto sceneWith = [&](const std::string& surf) {
+    std::string text = body;
+    text.replace(text.find("SURF"), 4, surf);
+    write(dir / "scene.scn", text);
+    auto s = buildScene(io::readScene(dir / "scene.scn"));
+    s->init();
+    return s;
+  };
+  const std::string surf = R"(<SphereLoader filename="body.sph"/>
+      <VisualStyle displayFlags="showCollisionModels"/>
+      <MechanicalObject name="spheres" position="@[-2].position"/>
+      <SphereCollisionModel name="model" listRadius="@[-3].listRadius"/>
+      <BarycentricMapping input="@../dofs" output="@spheres"/>)";
+  auto scene = sceneWith(surf);
+  EXPECT_TRUE(hasNote(*scene, "is the scene's only collision model"));
+  Simulation sim(*scene);
+  for (int i = 0; i < 5; ++i) ASSERT_FALSE(sim.step());
+  const MechanicalObject& dofs = object(*scene, "dofs");
+  const MechanicalObject& spheres = object(*scene, "spheres");
+  ASSERT_EQ(spheres.size(), 2);
+  EXPECT_GT(std::abs(dofs.x(2, 3) - 1.0), 1e-4);  // the free node has moved
+  // Barycentric coordinates (1/4 each) and node 3 itself, for positions and velocities.
+  EXPECT_LT((spheres.x.col(0) - dofs.x.rowwise().mean()).norm(), 1e-12);
+  EXPECT_LT((spheres.v.col(0) - dofs.v.rowwise().mean()).norm(), 1e-12);
+  EXPECT_LT((spheres.x.col(1) - dofs.x.col(3)).norm(), 1e-12);
+  EXPECT_LT((spheres.v.col(1) - dofs.v.col(3)).norm(), 1e-12);
+
+  // A positional link that reaches past the node's first object, or names a skipped one.
+  std::string e = errorOf([&] { sceneWith(R"(<SphereLoader filename="body.sph"/><MechanicalObject position="@[-2].position"/>)"); });
+  EXPECT_NE(e.find("link '@[-2].position': there are only 1 objects before this one"), std::string::npos) << e;
+  e = errorOf([&] { sceneWith(R"(<VisualStyle/><MechanicalObject position="@[-1].position"/>)"); });
+  EXPECT_NE(e.find("it names the <VisualStyle>, which is ignored here"), std::string::npos) << e;
+  // One radius per sphere.
+  e = errorOf([&] {
+    sceneWith(R"(<SphereLoader filename="body.sph"/><MechanicalObject name="spheres" position="@[-1].position"/>
+      <SphereCollisionModel listRadius="1 2 3"/><BarycentricMapping input="@../dofs" output="@spheres"/>)");
+  });
+  EXPECT_NE(e.find("listRadius: has 3 radii for the 2 nodes"), std::string::npos) << e;
+  // A force on the mapped state would not reach the body: refused.
+  e = errorOf([&] {
+    sceneWith(R"(<SphereLoader filename="body.sph"/><MechanicalObject name="spheres" position="@[-1].position"/>
+      <UniformMass totalMass="1"/><BarycentricMapping input="@../dofs" output="@spheres"/>)");
+  });
+  EXPECT_NE(e.find("forces and constraints on a mapped state are not carried back"), std::string::npos) << e;
+  // Spheres on a deformable body beside another collision model: deformable contact is refused.
+  e = errorOf([&] {
+    sceneWith(surf + R"(<Node name="other"><MechanicalObject position="0 0 3"/><SphereCollisionModel radius="1"/></Node>)");
+  });
+  EXPECT_NE(e.find("contact between deformable bodies is not handled"), std::string::npos) << e;
+  // Sphere files: the line of a bad entry, and a count that does not match.
+  write(dir / "body.sph", "sph 1.0\nsphe 1 0 0 0\n");
+  e = errorOf([&] { sceneWith(surf); });
+  EXPECT_NE(e.find("body.sph:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("5 numbers"), std::string::npos) << e;
+  write(dir / "body.sph", "sph 1.0\nnums 3\nsphe 1 0 0 0 1\n");
+  e = errorOf([&] { sceneWith(surf); });
+  EXPECT_NE(e.find("\"nums\" announces 3 spheres but the file has 1"), std::string::npos) << e;
 }

@@ -1,9 +1,11 @@
 // EulerExplicitSolver and the consistent mass matrix (MeshMatrixMass without lumping), checked
 // against closed forms: the element mass matrix rho V / 20 (1 + delta_ij), free fall (exact for
-// any mass matrix: M a = M g gives a = g), and the symplectic Euler map of a spring.
+// any mass matrix: M a = M g gives a = g), the symplectic Euler map of a spring, and the order
+// of RungeKutta4Solver.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <string>
 
 #include "builtin/Builtins.h"
@@ -137,4 +139,76 @@ TEST(EulerExplicit, SymplecticSpringFollowsItsExactMap) {
   // The scheme keeps a modified energy: the amplitude stays within h w of 1 (it would grow
   // without bound under forward Euler).
   EXPECT_LT(std::abs(s[0]), 1.0 + h * std::sqrt(w2));
+}
+
+// RungeKutta4Solver on a spring: x(t) = cos(w t) exactly; the scheme's error at a fixed time falls
+// as h^4 (halving h divides it by about 16), and a consistent mass gives the same free fall as a
+// lumped one (a = g exactly, so RK4 is exact for it).
+TEST(RungeKutta4, SpringErrorFallsAsTheFourthPowerOfTheStep) {
+  const double w = 5.0;  // sqrt(50 / 2)
+  auto errorAt1s = [&](double h) {
+    auto scene = build(R"(<Node name="root" dt=")" + std::to_string(h) + R"(" gravity="0 0 0">
+      <RungeKutta4Solver/>
+      <MechanicalObject name="dofs" position="1 0 0" rest_position="0 0 0"/>
+      <UniformMass totalMass="2"/>
+      <RestShapeSpringsForceField stiffness="50"/>
+    </Node>)");
+    Simulation sim(*scene);
+    const int n = static_cast<int>(std::lround(1.0 / h));
+    for (int i = 0; i < n; ++i) EXPECT_FALSE(sim.step());
+    return std::hypot(dofs(*scene).x(0, 0) - std::cos(w), (dofs(*scene).v(0, 0) + w * std::sin(w)) / w);
+  };
+  const double coarse = errorAt1s(0.02), fine = errorAt1s(0.01);
+  EXPECT_LT(coarse, 1e-5);
+  EXPECT_NEAR(coarse / fine, 16.0, 1.5) << coarse << " " << fine;
+
+  auto scene = build(blockScene("<RungeKutta4Solver/><SparseLDLSolver/>", "<MeshMatrixMass massDensity=\"3\"/>"));
+  Simulation sim(*scene);
+  const Eigen::Matrix3Xd x0 = dofs(*scene).x;
+  for (int i = 0; i < 10; ++i) ASSERT_FALSE(sim.step());
+  for (int i = 0; i < x0.cols(); ++i) {
+    EXPECT_NEAR(dofs(*scene).x(2, i) - x0(2, i), -0.5 * 10 * 0.1 * 0.1, 1e-10);
+    EXPECT_NEAR(dofs(*scene).v(2, i), -1.0, 1e-10);
+  }
+}
+
+// On a grid without tetrahedra, MeshMatrixMass and HexahedronFEMForceFieldAndMass use the exact
+// mass matrix of trilinear elements: for a unit cube of density rho, M_ij = rho / 216 times
+// 8, 4, 2 or 1 for the same node, an edge, a face diagonal or the body diagonal (the tensor
+// product of the 1-D matrix h/6 [2 1; 1 2]); its rows sum to rho / 8, the lumped mass.
+TEST(ConsistentMass, IsTheExactMatrixOfTrilinearHexahedra) {
+  for (const char* mass : {R"(<MeshMatrixMass massDensity="27"/>)",
+                           R"(<HexahedronFEMForceFieldAndMass density="27" youngModulus="100" poissonRatio="0.3"/>)"}) {
+    auto scene = build(R"(<Node name="root" gravity="0 0 -10">
+      <RegularGridTopology name="grid" n="2 2 2" min="0 0 0" max="1 1 1"/>
+      <MechanicalObject name="dofs"/>
+      )" + std::string(mass) + R"(
+    </Node>)");
+    const Mass* m = scene->all<Mass>().front();
+    ASSERT_TRUE(m->consistent()) << mass;
+    // Node 0 is (0,0,0); 1 (1,0,0) an edge away; 3 (1,1,0) a face diagonal; 7 (1,1,1) the body diagonal.
+    Eigen::Matrix3Xd dx = Eigen::Matrix3Xd::Zero(3, 8), out = Eigen::Matrix3Xd::Zero(3, 8);
+    dx(2, 0) = 1.0;
+    m->addMdx(dx, out, 1.0);
+    const double unit = 27.0 / 216.0;
+    EXPECT_NEAR(out(2, 0), 8 * unit, 1e-14) << mass;
+    EXPECT_NEAR(out(2, 1), 4 * unit, 1e-14) << mass;
+    EXPECT_NEAR(out(2, 3), 2 * unit, 1e-14) << mass;
+    EXPECT_NEAR(out(2, 7), 1 * unit, 1e-14) << mass;
+    EXPECT_EQ(out(0, 1), 0.0);
+    for (int i = 0; i < 8; ++i) EXPECT_NEAR(m->nodeMass()[i], 27.0 / 8, 1e-13) << mass;
+  }
+  // The body falls freely as a whole (M a = M g): its FEM exerts nothing on a rigid translation.
+  auto scene = build(R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+    <EulerImplicitSolver/><SparseLDLSolver/>
+    <RegularGridTopology name="grid" n="3 2 2" min="0 0 0" max="2 1 1"/>
+    <MechanicalObject name="dofs"/>
+    <HexahedronFEMForceFieldAndMass density="2" youngModulus="1000" poissonRatio="0.3"/>
+  </Node>)");
+  Simulation sim(*scene);
+  const Eigen::Matrix3Xd x0 = dofs(*scene).x;
+  for (int i = 0; i < 10; ++i) ASSERT_FALSE(sim.step());
+  const Eigen::Matrix3Xd d = dofs(*scene).x - x0;
+  EXPECT_LT((d.row(2).array() - d(2, 0)).abs().maxCoeff(), 1e-10);
+  EXPECT_NEAR(d(2, 0), -0.01 * 10 * 55 * 0.01, 1e-10);  // implicit Euler: x_n = x_0 + h^2 g n (n + 1) / 2
 }

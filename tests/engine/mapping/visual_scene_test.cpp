@@ -363,10 +363,15 @@ TEST(VisualSceneErrors, MissingSurfaceFile) {
                "<OglModel", {"OglModel.filename", "nowhere.obj", "does not exist"}});
 }
 
-TEST(VisualSceneErrors, OutputIsNotAVisualModel) {
+// The output is a visual model or a mapped MechanicalObject, never the input itself.
+TEST(VisualSceneErrors, OutputIsNotAVisualModelOrAMappedState) {
   expectError({R"(      <OglModel name="skin"/>
       <BarycentricMapping input="@.." output="@../dofs"/>)",
-               "<BarycentricMapping", {"BarycentricMapping.output", "'dofs' (MechanicalObject) is not a visual model"}});
+               "<BarycentricMapping", {"BarycentricMapping.output", "is the input itself"}});
+  expectError({R"(      <OglModel name="skin"/>
+      <BarycentricMapping input="@.." output="@../grid"/>)",
+               "<BarycentricMapping",
+               {"BarycentricMapping.output", "'grid' (RegularGridTopology) is neither a visual model"}});
 }
 
 TEST(VisualSceneErrors, InputIsNotAMechanicalObject) {
