@@ -64,7 +64,8 @@ void registerBuiltins(Registry& r) {
   for (const char* t : {"EdgeSetTopologyModifier", "QuadSetTopologyModifier", "HexahedronSetTopologyModifier",
                         "PointSetTopologyModifier"})
     r.addIgnored(t, "topology changes are not needed");
-  for (const char* t : {"ConstantSparsityPatternSystem", "NaturalOrderingMethod", "AMDOrderingMethod",
+  for (const char* t : {"ConstantSparsityPatternSystem", "PreconditionedMatrixFreeSystem", "MatrixLinearSystem",
+                        "NaturalOrderingMethod", "AMDOrderingMethod",
                         "COLAMDOrderingMethod", "MetisOrderingMethod"})
     r.addIgnored(t, "the linear solver chooses its own matrix storage and ordering (round-off differs, not the physics)");
   for (const char* t : {"EdgeSetGeometryAlgorithms", "QuadSetGeometryAlgorithms", "HexahedronSetGeometryAlgorithms",

@@ -1,4 +1,7 @@
+#include <Eigen/Dense>
 #include <cmath>
+#include <memory>
+#include <vector>
 
 #include "solvers/linear/LinearSolver.h"
 
@@ -59,6 +62,182 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
   if (!std::isfinite(info.relResidual)) {
     info.ok = false;
     info.message = "conjugate gradient produced a non-finite residual";
+  }
+  return info;
+}
+
+}  // namespace viscera
+
+namespace viscera {
+
+LinearSolveInfo preconditionedConjugateGradient(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                                int maxIterations, double tolerance, const Preconditioner* precondition) {
+  LinearSolveInfo info;
+  const Eigen::Index n = b.size();
+  const double bb = b.squaredNorm();
+  if (!std::isfinite(bb)) {
+    info.ok = false;
+    info.message = "right-hand side is not finite";
+    return info;
+  }
+  if (x.size() != n) x = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd r(n), w(n), s(n);
+  problem.apply(x, s);
+  r = b - s;
+  auto apply = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
+    if (precondition) (*precondition)(in, out);
+    else out = in;
+  };
+  apply(r, w);
+  double delta = r.dot(w);
+  const double tol = tolerance * bb;
+  int it = 1;
+  while (it <= maxIterations && delta > tol) {
+    problem.apply(w, s);
+    const double den = w.dot(s);
+    if (!std::isfinite(den) || den == 0.0) {
+      info.ok = std::isfinite(den);
+      if (!info.ok) info.message = "preconditioned conjugate gradient broke down (non-finite w^T A w)";
+      break;
+    }
+    const double alpha = delta / den;
+    x.noalias() += alpha * w;
+    r.noalias() -= alpha * s;
+    apply(r, s);
+    const double previous = delta;
+    delta = r.dot(s);
+    w = s + (delta / previous) * w;
+    info.iterations = it++;
+  }
+  info.relResidual = bb > 0 ? r.norm() / std::sqrt(bb) : 0.0;
+  if (!x.allFinite()) {
+    info.ok = false;
+    info.message = "preconditioned conjugate gradient produced non-finite values";
+  }
+  return info;
+}
+
+Preconditioner jacobiPreconditioner(const BlockSparseMatrix& A) {
+  Eigen::VectorXd inv(A.rows());
+  for (int i = 0; i < A.blockRows(); ++i) {
+    const auto D = A.block(A.diagonalSlot(i));
+    for (int k = 0; k < 3; ++k) inv[3 * i + k] = D(k, k) != 0.0 ? 1.0 / D(k, k) : 1.0;
+  }
+  return [inv](const Eigen::VectorXd& r, Eigen::VectorXd& z) { z = inv.cwiseProduct(r); };
+}
+
+Preconditioner blockJacobiPreconditioner(const BlockSparseMatrix& A) {
+  std::vector<Eigen::Matrix3d> inv(A.blockRows());
+  for (int i = 0; i < A.blockRows(); ++i) {
+    const Eigen::Matrix3d D = A.block(A.diagonalSlot(i));
+    const double det = D.determinant();
+    inv[i] = det != 0.0 && std::isfinite(det) ? Eigen::Matrix3d(D.inverse()) : Eigen::Matrix3d::Identity();
+  }
+  return [inv](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+    z.resize(r.size());
+    for (size_t i = 0; i < inv.size(); ++i) z.segment<3>(3 * i) = inv[i] * r.segment<3>(3 * i);
+  };
+}
+
+Preconditioner ssorPreconditioner(const BlockSparseMatrix& A, double omega) {
+  // Entry-wise over the 3n unknowns: first (D/omega + U) t = r backwards, then
+  // (I + omega D^-1 L) z = t forwards, the order SOFA's SSORPreconditioner uses. A copy of A
+  // keeps the preconditioner fixed until it is rebuilt.
+  auto M = std::make_shared<const BlockSparseMatrix>(A);
+  Eigen::VectorXd invDiag(A.rows());
+  for (int i = 0; i < A.blockRows(); ++i) {
+    const auto D = A.block(A.diagonalSlot(i));
+    for (int k = 0; k < 3; ++k) invDiag[3 * i + k] = D(k, k) != 0.0 ? 1.0 / D(k, k) : 1.0;
+  }
+  return [M, invDiag, omega](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+    const int nb = M->blockRows();
+    const auto& start = M->rowStart();
+    const auto& cols = M->cols();
+    z.resize(r.size());
+    for (int bi = nb - 1; bi >= 0; --bi)
+      for (int k = 2; k >= 0; --k) {
+        const int row = 3 * bi + k;
+        double sum = 0;
+        for (int s = start[bi]; s < start[bi + 1]; ++s) {
+          const auto B = M->block(s);
+          for (int c = 0; c < 3; ++c) {
+            const int col = 3 * cols[s] + c;
+            if (col > row) sum += B(k, c) * z[col];
+          }
+        }
+        z[row] = (r[row] - sum) * omega * invDiag[row];
+      }
+    for (int bi = 0; bi < nb; ++bi)
+      for (int k = 0; k < 3; ++k) {
+        const int row = 3 * bi + k;
+        double sum = 0;
+        for (int s = start[bi]; s < start[bi + 1]; ++s) {
+          const auto B = M->block(s);
+          for (int c = 0; c < 3; ++c) {
+            const int col = 3 * cols[s] + c;
+            if (col < row) sum += B(k, c) * z[col];
+          }
+        }
+        z[row] -= sum * omega * invDiag[row];
+      }
+  };
+}
+
+}  // namespace viscera
+
+namespace viscera {
+
+LinearSolveInfo minimumResidual(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                int maxIterations, double tolerance) {
+  // Paige and Saunders' MINRES: Lanczos vectors v, the QR of the tridiagonal by Givens rotations
+  // (c, s), and search directions w; the residual norm is |phi| without forming r.
+  LinearSolveInfo info;
+  const Eigen::Index n = b.size();
+  const double normb = b.norm();
+  if (!std::isfinite(normb)) {
+    info.ok = false;
+    info.message = "right-hand side is not finite";
+    return info;
+  }
+  x = Eigen::VectorXd::Zero(n);
+  if (normb == 0.0) return info;
+  Eigen::VectorXd vPrev = Eigen::VectorXd::Zero(n), v = b / normb, Av(n), wPrev = Eigen::VectorXd::Zero(n),
+                  wPrev2 = Eigen::VectorXd::Zero(n);
+  double beta = normb, cPrev = 1, c = 1, sPrev = 0, s = 0, phi = normb;
+  for (int it = 1; it <= maxIterations; ++it) {
+    problem.apply(v, Av);
+    const double alpha = v.dot(Av);
+    Eigen::VectorXd vNext = Av - alpha * v - beta * vPrev;
+    const double betaNext = vNext.norm();
+    // Apply the two previous rotations to the new column (beta, alpha, betaNext) of T.
+    const double e = sPrev * beta, dTmp = cPrev * beta;
+    const double d = c * dTmp + s * alpha, g = -s * dTmp + c * alpha;
+    const double rho = std::hypot(g, betaNext);
+    if (!(rho > 0) || !std::isfinite(rho)) {
+      info.ok = std::isfinite(rho);
+      if (!info.ok) info.message = "MINRES broke down (non-finite Lanczos step)";
+      break;
+    }
+    const double cNext = g / rho, sNext = betaNext / rho;
+    const Eigen::VectorXd w = (v - d * wPrev - e * wPrev2) / rho;
+    x.noalias() += cNext * phi * w;
+    phi = -sNext * phi;
+    info.iterations = it;
+    info.relResidual = std::abs(phi) / normb;
+    if (info.relResidual <= tolerance || betaNext == 0.0) break;
+    wPrev2 = wPrev;
+    wPrev = w;
+    vPrev = v;
+    v = vNext / betaNext;
+    beta = betaNext;
+    cPrev = c;
+    sPrev = s;
+    c = cNext;
+    s = sNext;
+  }
+  if (!x.allFinite()) {
+    info.ok = false;
+    info.message = "MINRES produced non-finite values";
   }
   return info;
 }

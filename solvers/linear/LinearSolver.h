@@ -49,6 +49,24 @@ struct CgOptions {
 LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                                   const CgOptions& options);
 
+// MINRES (Paige and Saunders) from zero: for symmetric, possibly indefinite A; stops after
+// `maxIterations` or when ||r|| / ||b|| <= tolerance.
+LinearSolveInfo minimumResidual(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                int maxIterations, double tolerance);
+
+// z = M^-1 r for a preconditioner M.
+using Preconditioner = std::function<void(const Eigen::VectorXd& r, Eigen::VectorXd& z)>;
+// Preconditioned conjugate gradient as SOFA's PCGLinearSolver runs it: starts from x (the previous
+// solution), and stops after `maxIterations` or when r^T M^-1 r <= tolerance b^T b (without a
+// preconditioner: the squared relative residual). `precondition` may be null.
+LinearSolveInfo preconditionedConjugateGradient(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                                int maxIterations, double tolerance, const Preconditioner* precondition);
+// Preconditioners built from the assembled matrix as it is now: its diagonal, its 3x3 diagonal
+// blocks, and SSOR with relaxation omega (symmetric Gauss-Seidel at 1).
+Preconditioner jacobiPreconditioner(const BlockSparseMatrix& A);
+Preconditioner blockJacobiPreconditioner(const BlockSparseMatrix& A);
+Preconditioner ssorPreconditioner(const BlockSparseMatrix& A, double omega);
+
 // Sparse LDL^T (CHOLMOD). The symbolic analysis is done once for a pattern and reused.
 class CholmodSolver {
  public:

@@ -1,4 +1,5 @@
-// Scene components for the linear solvers: CGLinearSolver and SparseLDLSolver.
+// Scene components for the linear solvers: CGLinearSolver, PCGLinearSolver with its preconditioners,
+// and SparseLDLSolver.
 #include "core/Component.h"
 #include "core/Registry.h"
 #include "solvers/linear/LinearSolver.h"
@@ -31,6 +32,17 @@ class CGLinearSolver : public Component, public LinearSolver {
   bool assembled_ = true;
 };
 
+class MinResLinearSolver : public Component, public LinearSolver {
+ public:
+  using Component::Component;
+  bool needsMatrix() const override { return false; }
+  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+    return minimumResidual(p, b, x, static_cast<int>(attrs_.integer("iterations")), attrs_.real("tolerance"));
+  }
+};
+
+// SparseLDLSolver factorises every step's matrix; PrecomputedLinearSolver (SOFA's) factorises the
+// first one and solves every later step with it, as if the system never changed.
 class SparseLDLSolver : public Component, public LinearSolver {
  public:
   using Component::Component;
@@ -39,13 +51,15 @@ class SparseLDLSolver : public Component, public LinearSolver {
     LinearSolveInfo info;
     if (!p.matrix) {
       info.ok = false;
-      info.message = "SparseLDLSolver needs an assembled matrix";
+      info.message = typeName() + " needs an assembled matrix";
       return info;
     }
-    if (!chol_.factorize(*p.matrix, info.message)) {
+    const bool precomputed = typeName() == "PrecomputedLinearSolver";
+    if ((!precomputed || !factorized_) && !chol_.factorize(*p.matrix, info.message)) {
       info.ok = false;
       return info;
     }
+    factorized_ = true;
     chol_.solve(b, x);
     info.iterations = 1;
     if (!x.allFinite()) {
@@ -57,11 +71,112 @@ class SparseLDLSolver : public Component, public LinearSolver {
 
  private:
   CholmodSolver chol_;
+  bool factorized_ = false;
+};
+
+// A preconditioner for PCGLinearSolver, built from the assembled matrix.
+class PreconditionerComponent : public Component {
+ public:
+  using Component::Component;
+  virtual Preconditioner build(const BlockSparseMatrix& A) const = 0;
+};
+
+class JacobiPreconditioner : public PreconditionerComponent {
+ public:
+  using PreconditionerComponent::PreconditionerComponent;
+  Preconditioner build(const BlockSparseMatrix& A) const override { return jacobiPreconditioner(A); }
+};
+
+class BlockJacobiPreconditioner : public PreconditionerComponent {
+ public:
+  using PreconditionerComponent::PreconditionerComponent;
+  Preconditioner build(const BlockSparseMatrix& A) const override { return blockJacobiPreconditioner(A); }
+};
+
+class SSORPreconditioner : public PreconditionerComponent {
+ public:
+  using PreconditionerComponent::PreconditionerComponent;
+  Preconditioner build(const BlockSparseMatrix& A) const override { return ssorPreconditioner(A, attrs().real("omega")); }
+};
+
+class PCGLinearSolver : public Component, public LinearSolver {
+ public:
+  using Component::Component;
+  void init() override {
+    if (attrs_.boolean("use_precond") && attrs_.isSet("preconditioner")) {
+      preconditioner_ = dynamic_cast<PreconditionerComponent*>(linkedComponent("preconditioner"));
+      if (!preconditioner_)
+        throw error("preconditioner", "does not link to a preconditioner (JacobiPreconditioner, BlockJacobiPreconditioner "
+                                      "or SSORPreconditioner)");
+    }
+    updateStep_ = static_cast<int>(attrs_.integer("update_step"));
+  }
+  bool needsMatrix() const override { return preconditioner_ != nullptr; }
+  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+    if (preconditioner_) {
+      if (!p.matrix) {
+        LinearSolveInfo info;
+        info.ok = false;
+        info.message = "PCGLinearSolver's preconditioner needs an assembled matrix";
+        return info;
+      }
+      // SOFA rebuilds the preconditioner every update_step solves and keeps it in between.
+      if (solves_++ % updateStep_ == 0 || !precondition_) precondition_ = preconditioner_->build(*p.matrix);
+    }
+    return preconditionedConjugateGradient(p, b, x, static_cast<int>(attrs_.integer("iterations")), attrs_.real("tolerance"),
+                                           preconditioner_ ? &precondition_ : nullptr);
+  }
+
+ private:
+  PreconditionerComponent* preconditioner_ = nullptr;
+  Preconditioner precondition_;
+  int updateStep_ = 1;
+  long solves_ = 0;
 };
 
 }  // namespace
 
 void registerLinearSolvers(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "PCGLinearSolver";
+    s.aliases = {"ShewchukPCGLinearSolver"};
+    s.category = "solver";
+    s.doc = "Preconditioned conjugate gradient, as SOFA's: starts from the previous step's solution and stops after "
+            "`iterations` or when r^T M^-1 r <= tolerance b^T b (without a preconditioner the squared relative "
+            "residual, so tolerance 1e-5 is a residual of about 3e-3). The preconditioner M is a linked "
+            "JacobiPreconditioner, BlockJacobiPreconditioner or SSORPreconditioner, rebuilt every update_step steps.";
+    s.add(AttrSpec::integer("iterations").def("25").atLeast(1).help("maximum number of iterations"));
+    s.add(AttrSpec::real("tolerance").def("1e-5").atLeast(0).help("stop when r^T M^-1 r <= tolerance b^T b"));
+    s.add(AttrSpec::boolean("use_precond").def("true").help("apply the preconditioner (false: plain conjugate gradient)"));
+    s.add(AttrSpec::link("preconditioner").help("the preconditioner component (none: plain conjugate gradient)"));
+    s.add(AttrSpec::integer("update_step").def("1").atLeast(1).help("rebuild the preconditioner every this many solves"));
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.factory = [](BuildContext& c) { return std::make_unique<PCGLinearSolver>(c); };
+    r.add(std::move(s));
+  }
+  const char* preconditioners[3][2] = {
+      {"JacobiPreconditioner", "The diagonal of the assembled matrix, for PCGLinearSolver."},
+      {"BlockJacobiPreconditioner", "The 3x3 diagonal blocks (one per node) of the assembled matrix, inverted, for PCGLinearSolver."},
+      {"SSORPreconditioner", "Symmetric successive over-relaxation of the assembled matrix (omega 1: symmetric Gauss-Seidel), "
+                             "for PCGLinearSolver, in SOFA's order (the upper sweep first)."}};
+  for (auto& p : preconditioners) {
+    ComponentSpec s;
+    s.name = p[0];
+    s.category = "solver";
+    s.doc = p[1];
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    const std::string name = p[0];
+    if (name == "SSORPreconditioner") {
+      s.add(AttrSpec::real("omega").def("1").above(0).below(2).help("relaxation factor, in (0, 2)"));
+      s.factory = [](BuildContext& c) { return std::make_unique<SSORPreconditioner>(c); };
+    } else if (name == "JacobiPreconditioner") {
+      s.factory = [](BuildContext& c) { return std::make_unique<JacobiPreconditioner>(c); };
+    } else {
+      s.factory = [](BuildContext& c) { return std::make_unique<BlockJacobiPreconditioner>(c); };
+    }
+    r.add(std::move(s));
+  }
   {
     ComponentSpec s;
     s.name = "CGLinearSolver";
@@ -91,6 +206,32 @@ void registerLinearSolvers(Registry& r) {
             "positive definite system and map to it.";
     s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseLDLSolver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "PrecomputedLinearSolver";
+    s.category = "solver";
+    s.doc = "SOFA's PrecomputedLinearSolver: the first step's matrix is factorised (CHOLMOD) and that factorisation "
+            "solves every later step, as if the system never changed (fast, and exact only for a linear model).";
+    s.add(AttrSpec::boolean("use_file").def("false").help("must be false: the factorisation is not stored in a file"));
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      if (c.attrs().boolean("use_file")) throw c.attrs().error("use_file", "a stored factorisation is not supported; set it false");
+      return std::make_unique<SparseLDLSolver>(c);
+    };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "MinResLinearSolver";
+    s.category = "solver";
+    s.doc = "MINRES (minimum residual, Paige and Saunders), matrix-free, from zero: for symmetric systems, definite or "
+            "not; stops after `iterations` or when ||r||/||b|| <= tolerance.";
+    s.add(AttrSpec::integer("iterations").def("25").atLeast(1).help("maximum number of iterations"));
+    s.add(AttrSpec::real("tolerance").def("1e-5").atLeast(0).help("relative residual ||r||/||b|| to stop at"));
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.factory = [](BuildContext& c) { return std::make_unique<MinResLinearSolver>(c); };
     r.add(std::move(s));
   }
 }

@@ -1,5 +1,6 @@
 // Linear algebra of the implicit step: BlockSparseMatrix (pattern, product, constraints),
-// conjugateGradient (accuracy and each stopping rule, Jacobi preconditioning, warm start) and
+// conjugateGradient (accuracy and each stopping rule, Jacobi preconditioning, warm start), SOFA's
+// preconditioned CG with its preconditioners, MINRES, and
 // CholmodSolver (accuracy, reuse of the symbolic analysis, failure on indefinite matrices),
 // against dense Eigen references built independently here.
 #include <gtest/gtest.h>
@@ -382,4 +383,70 @@ TEST(CholmodSolver, IndefiniteMatrixFailsSimplicial) {
   }
   EXPECT_FALSE(ok) << "indefinite matrix factorized without error (simplicial LDL^T path)";
   EXPECT_FALSE(msg.empty());
+}
+
+// PCGLinearSolver's iteration (SOFA's): every preconditioner reaches the dense solution of a badly
+// scaled SPD system; the diagonal ones in far fewer iterations than none. Without a
+// preconditioner it stops at the first iterate whose squared relative residual is below the
+// tolerance (the textbook CG iterate of that count), and it starts from the x it is given.
+TEST(PreconditionedConjugateGradient, PreconditionersAndSofasStoppingRule) {
+  RandomSystem s = randomSymmetric(150, 4, 0.5, 41);
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<double> u(-1, 1);
+  VectorXd S(s.A.rows());
+  for (int i = 0; i < S.size(); ++i) S[i] = std::pow(10.0, u(rng));
+  s.dense = S.asDiagonal() * s.dense * S.asDiagonal();
+  for (int i = 0; i < s.A.blockRows(); ++i)
+    for (int sl = s.A.rowStart()[i]; sl < s.A.rowStart()[i + 1]; ++sl)
+      s.A.block(sl) = s.dense.block<3, 3>(3 * i, 3 * s.A.cols()[sl]);
+  const VectorXd b = randomVector(s.A.rows(), 43);
+  const VectorXd exact = s.dense.ldlt().solve(b);
+  const Preconditioner jacobi = jacobiPreconditioner(s.A), block = blockJacobiPreconditioner(s.A),
+                       ssor = ssorPreconditioner(s.A, 1.0);
+  int iterations[4];
+  const Preconditioner* all[4] = {nullptr, &jacobi, &block, &ssor};
+  for (int k = 0; k < 4; ++k) {
+    VectorXd x;
+    const LinearSolveInfo info = preconditionedConjugateGradient(problemOf(s.A), b, x, 5000, 1e-24, all[k]);
+    ASSERT_TRUE(info.ok) << k;
+    EXPECT_LT((x - exact).norm(), 1e-6 * exact.norm()) << k;
+    iterations[k] = info.iterations;
+  }
+  std::printf("  iterations: none %d, Jacobi %d, block Jacobi %d, SSOR %d\n", iterations[0], iterations[1], iterations[2],
+              iterations[3]);
+  for (int k = 1; k < 4; ++k) EXPECT_LT(3 * iterations[k], iterations[0]) << k;
+
+  // The stopping rule on a well-conditioned system: ||r||^2 <= tol ||b||^2, checked before each iteration.
+  RandomSystem w = randomSymmetric(60, 3, 2.0, 44);
+  const VectorXd bw = randomVector(w.A.rows(), 45);
+  VectorXd x;
+  const LinearSolveInfo info = preconditionedConjugateGradient(problemOf(w.A), bw, x, 1000, 1e-6, nullptr);
+  EXPECT_LE(relResidual(w.dense, x, bw) * relResidual(w.dense, x, bw), 1e-6);
+  const VectorXd before = referenceCG(w.dense, bw, info.iterations - 1);
+  EXPECT_GT(relResidual(w.dense, before, bw) * relResidual(w.dense, before, bw), 1e-6);
+  EXPECT_LT((x - referenceCG(w.dense, bw, info.iterations)).norm(), 1e-10 * x.norm());
+  // Started at the solution, it does nothing.
+  VectorXd solved = w.dense.ldlt().solve(bw);
+  EXPECT_EQ(preconditionedConjugateGradient(problemOf(w.A), bw, solved, 1000, 1e-6, nullptr).iterations, 0);
+}
+
+// MINRES solves symmetric systems, indefinite ones included (where CG has no guarantee), to the
+// tolerance on ||r|| / ||b||.
+TEST(MinimumResidual, SolvesSymmetricIndefiniteSystems) {
+  for (double shift : {0.5, -40.0}) {
+    RandomSystem s = randomSymmetric(80, 3, 0.5, 51);
+    // Shift the spectrum: -40 makes the matrix indefinite.
+    for (int i = 0; i < s.A.blockRows(); ++i) {
+      s.A.block(s.A.diagonalSlot(i)) += shift * Eigen::Matrix3d::Identity();
+      s.dense.block<3, 3>(3 * i, 3 * i) += shift * Eigen::Matrix3d::Identity();
+    }
+    const Eigen::SelfAdjointEigenSolver<MatrixXd> eig(s.dense);
+    if (shift < 0) ASSERT_LT(eig.eigenvalues().minCoeff(), 0.0);
+    const VectorXd b = randomVector(s.A.rows(), 52);
+    VectorXd x;
+    const LinearSolveInfo info = minimumResidual(problemOf(s.A), b, x, 5000, 1e-10);
+    ASSERT_TRUE(info.ok);
+    EXPECT_LE(info.relResidual, 1e-10) << shift;
+    EXPECT_LT(relResidual(s.dense, x, b), 1e-9) << shift;  // the recurrence's residual is the true one
+  }
 }
