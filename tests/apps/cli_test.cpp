@@ -495,7 +495,7 @@ TEST(Cli, ASphereCentreOnTheSurfaceHasADefinedNormal) {
   const auto exporter = scene.find("<VTKExporter");
   scene.erase(exporter, scene.find("/>", exporter) + 2 - exporter);
   std::ofstream(tmp.path() / "phantom.xml") << scene;
-  for (const std::string at : {"0,0,0", "2.8625,0,39.3", "30,17.9,39.3"}) {
+  for (const std::string at : {"0,0,0", "2.8625,0,35.8", "30,19.65,35.8"}) {
     std::ofstream(tmp.path() / "still.csv") << "t,x,y,z,qx,qy,qz,qw\n0," << at << ",0,0,0,1\n";
     const RunResult r = runViscera({"run", tmp / "phantom.xml", "--steps", "30", "--quiet"});
     EXPECT_EQ(r.rc, 0) << at << "\n" << r;

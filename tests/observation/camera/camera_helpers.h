@@ -16,8 +16,9 @@ namespace camera_test {
 
 using viscera::obs::TriangleList;
 
-// The gel phantom of scenes/gel_phantom.xml: a 68.7 x 35.8 x 39.3 mm block at the origin on a grid of
-// n nodes, split into tetrahedra; its boundary triangles, outward.
+// A block of the gel phantom's size (68.7 x 35.8 x 39.3 mm, its two shorter sides in the other order
+// than scenes/gel_phantom.xml) at the origin on a grid of n nodes, split into tetrahedra; its
+// boundary triangles, outward.
 struct Phantom {
   Eigen::Vector3d lo{0, 0, 0}, hi{68.7, 35.8, 39.3};
   Eigen::Matrix3Xd points;  // 3 x #nodes
