@@ -48,11 +48,12 @@ std::optional<Diverged> Simulation::step() {
   // Instruments to their end-of-step pose, contacts against the tissue at the step start, the
   // (free) motion of every body, then the contact constraints.
   for (Driver* d : drivers_) d->drive(tEnd, dt);
-  if (pipeline_) pipeline_->detect();
   auto failed = [this](std::optional<Diverged> bad) {
     for (Observer* o : observers_) o->diverged(time_, steps_);
     return bad;
   };
+  if (pipeline_)
+    if (auto bad = pipeline_->detect(steps_ + 1, time_)) return failed(bad);
   for (OdeSolver* s : solvers_)
     if (auto bad = s->step(time_, dt, steps_ + 1)) return failed(bad);
   if (pipeline_ && constraints_)

@@ -334,9 +334,12 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
     std::vector<std::vector<ReferenceFrame>> refs;
     // SOFA dumps its states in scene order and names an unnamed one after its type and a counter
     // ("MechanicalObject1"): a name not found here falls back to the dump's index in that order.
+    // Mapped states are dumped (and counted) only when the list asks for them.
     std::vector<const Component*> ours;
-    for (auto* c : scene->all<Component>())
-      if (dynamic_cast<MechanicalObject*>(c) || dynamic_cast<RigidObject*>(c)) ours.push_back(c);
+    for (auto* c : scene->all<Component>()) {
+      const auto* mo = dynamic_cast<MechanicalObject*>(c);
+      if ((mo && (entry.mapped || !mo->mappedBy())) || dynamic_cast<RigidObject*>(c)) ours.push_back(c);
+    }
     auto taken = [&](const Component* c) { return std::find(objects.begin(), objects.end(), c) != objects.end(); };
     for (const auto& d : dumps) {
       const Component* match = nullptr;

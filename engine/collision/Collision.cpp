@@ -106,7 +106,7 @@ void SurfaceCollisionModel::init() {
   kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
   if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
   state_ = &contextState(*this);
-  stiffness_ = attrs_.isSet("contactStiffness") ? attrs_.real("contactStiffness") : 0.0;
+  stiffness_ = attrs_.real("contactStiffness");
   // The surface: from the `topology` link or the nearest node with a topology, the boundary of its
   // tetrahedra, else of its hexahedra (a grid), else its own triangles (a TriangleSetTopologyContainer,
   // e.g. filled by Tetra2TriangleTopologicalMapping, or a surface loader).
@@ -317,7 +317,6 @@ void SurfaceCollisionModel::saveState(StateWriter& out) const {
   // A contact's sphere is written as its index among the scene's spheres.
   const auto spheres = scene().all<SphereCollisionModel>();
   out.put(penalty_);
-  out.put(k_);
   out.count(static_cast<std::int64_t>(contacts_.size()));
   for (const Contact& c : contacts_) {
     out.put(static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()));
@@ -330,6 +329,7 @@ void SurfaceCollisionModel::saveState(StateWriter& out) const {
     out.put(c.gap0);
     out.put(c.force);
     out.put(c.active);
+    out.put(c.k);
   }
 }
 
@@ -337,7 +337,6 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
   const auto spheres = scene().all<SphereCollisionModel>();
   const int nodes = state_->size();
   in.get(penalty_);
-  in.get(k_);
   const std::int64_t n = in.count();
   if (static_cast<size_t>(n) > in.remaining()) in.mismatch("more contacts than it holds");
   std::vector<Contact> cs(n);
@@ -359,6 +358,7 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
     in.get(c.gap0);
     in.get(c.force);
     in.get(c.active);
+    in.get(c.k);
   }
   contacts_ = std::move(cs);
 }
@@ -366,7 +366,10 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
 void SurfaceCollisionModel::setContacts(std::vector<Contact> c, const ContactSettings& s) {
   contacts_ = std::move(c);
   penalty_ = s.response == ContactSettings::Response::Penalty;
-  k_ = stiffness_;
+  // SOFA's penalty: each model's contactStiffness factor multiplied, over the distance the contact
+  // keeps between the sphere's centre and the surface (contactDistance plus the radius).
+  for (Contact& c : contacts_)
+    c.k = c.sphere->contactStiffness() * stiffness_ / (s.contactDistance + c.sphere->radius());
 }
 
 void SurfaceCollisionModel::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
@@ -375,7 +378,7 @@ void SurfaceCollisionModel::addForce(const Eigen::Matrix3Xd& x, const Eigen::Mat
     const double g = c.gap(x);
     c.active = g < 0;
     if (!c.active) continue;
-    const Eigen::Vector3d fc = k_ * g * c.n;
+    const Eigen::Vector3d fc = c.k * g * c.n;
     for (int k = 0; k < c.count; ++k) f.col(c.nodes[k]) += c.w[k] * fc;
   }
 }
@@ -386,7 +389,7 @@ void SurfaceCollisionModel::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3
     if (!c.active) continue;
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
     for (int k = 0; k < c.count; ++k) d += c.w[k] * dx.col(c.nodes[k]);
-    const Eigen::Vector3d fc = -kFactor * k_ * c.n.dot(d) * c.n;
+    const Eigen::Vector3d fc = -kFactor * c.k * c.n.dot(d) * c.n;
     for (int k = 0; k < c.count; ++k) df.col(c.nodes[k]) += c.w[k] * fc;
   }
 }
@@ -400,14 +403,14 @@ void SurfaceCollisionModel::addStiffness(BlockSparseMatrix& K, double kFactor) c
   if (!penalty_) return;
   for (const Contact& c : contacts_) {
     if (!c.active) continue;
-    const Eigen::Matrix3d nn = -kFactor * k_ * c.n * c.n.transpose();
+    const Eigen::Matrix3d nn = -kFactor * c.k * c.n * c.n.transpose();
     for (int a = 0; a < c.count; ++a)
       for (int b = 0; b < c.count; ++b) K.block(K.slot(c.nodes[a], c.nodes[b])) += c.w[a] * c.w[b] * nn;
   }
 }
 
 void SurfaceCollisionModel::finishPenalty(const Eigen::Matrix3Xd& x) {
-  for (Contact& c : contacts_) c.force = c.active ? Eigen::Vector3d(k_ * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
+  for (Contact& c : contacts_) c.force = c.active ? Eigen::Vector3d(c.k * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -494,17 +497,20 @@ void CollisionPipeline::init() {
   }
   // Spheres on a deformable body's nodes can only touch another deformable body, which is not
   // handled: accept them where there is nothing for them to touch.
-  const auto nodeSpheres = scene().all<NodeSphereCollisionModel>();
-  for (NodeSphereCollisionModel* ns : nodeSpheres) scene().initComponent(*ns);
-  if (!nodeSpheres.empty()) {
-    const NodeSphereCollisionModel& ns = *nodeSpheres.front();
-    const size_t others = spheres_.size() + surfaces_.size() + nodeSpheres.size() - 1;
+  nodeSpheres_ = scene().all<NodeSphereCollisionModel>();
+  for (NodeSphereCollisionModel* ns : nodeSpheres_) scene().initComponent(*ns);
+  if (!nodeSpheres_.empty()) {
+    const NodeSphereCollisionModel& ns = *nodeSpheres_.front();
+    const size_t others = spheres_.size() + surfaces_.size();
     if (others > 0)
       throw ns.error("puts spheres on the nodes of the deformable body '" + ns.mstate().name() +
                      "'; contact between deformable bodies is not handled (Viscera's contacts are rigid spheres "
-                     "against tissue surfaces), and this scene has " + std::to_string(others) + " other collision model(s)");
-    scene().addNote(ns.loc().str() + ": note: " + ns.typeName() + " '" + ns.name() +
-                    "' is the scene's only collision model and does not collide with itself: no contact can occur");
+                     "against tissue surfaces), and this scene has " + std::to_string(others) + " instrument or surface "
+                     "collision model(s)");
+    scene().addNote(ns.loc().str() + ": note: " + std::to_string(nodeSpheres_.size()) +
+                    " sphere model(s) on deformable bodies and no other collision model: a model does not collide "
+                    "with itself, and the run stops if spheres of two bodies touch (contact between deformable "
+                    "bodies is not handled)");
     return;
   }
   if (spheres_.empty() || surfaces_.empty()) {
@@ -515,16 +521,34 @@ void CollisionPipeline::init() {
   }
   if (settings_.response == ContactSettings::Response::Penalty) {
     for (SurfaceCollisionModel* s : surfaces_)
-      if (s->active() && !(s->contactStiffness() > 0))
-        throw s->error("contactStiffness",
-                       "penalty contact needs a contact stiffness (force per length per contact, e.g. contactStiffness=\"200 N/m\"), "
-                       "or use the constraint response (CollisionResponse response=\"FrictionContactConstraint\")");
+      if (s->active() && s->contactStiffness() == 0)
+        scene().addNote(s->loc().str() + ": note: " + s->typeName() + " '" + s->name() +
+                        "' has contactStiffness 0: its penalty contacts push with no force");
   } else if (scene().all<ConstraintSolver>().empty()) {
     throw error("the constraint contact response needs FreeMotionAnimationLoop and GenericConstraintSolver in the root node");
   }
 }
 
-void CollisionPipeline::detect() {
+std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
+  // Spheres on different deformable bodies must stay apart (within contactDistance they would touch).
+  for (size_t a = 0; a < nodeSpheres_.size(); ++a)
+    for (size_t b = a + 1; b < nodeSpheres_.size(); ++b) {
+      const NodeSphereCollisionModel &A = *nodeSpheres_[a], &B = *nodeSpheres_[b];
+      if (&A.mstate() == &B.mstate()) continue;
+      for (int i = 0; i < A.mstate().size(); ++i)
+        for (int j = 0; j < B.mstate().size(); ++j)
+          if ((A.mstate().x.col(i) - B.mstate().x.col(j)).norm() <
+              A.radii()[i] + B.radii()[j] + settings_.contactDistance) {
+            Diverged d;
+            d.step = stepIndex;
+            d.time = t;
+            d.reason = "spheres of '" + A.name() + "' and '" + B.name() +
+                       "' touch: contact between deformable bodies is not handled";
+            d.object = A.mstate().name();
+            d.nodes = {i};
+            return d;
+          }
+    }
   for (SurfaceCollisionModel* s : surfaces_) {
     if (!s->active()) continue;
     std::vector<Contact> found;
@@ -534,6 +558,7 @@ void CollisionPipeline::detect() {
     for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->mstate().x, settings_, found);
     s->setContacts(std::move(found), settings_);
   }
+  return std::nullopt;
 }
 
 void CollisionPipeline::finish() {

@@ -42,6 +42,7 @@ struct Contact {
   double gap0 = 0;                  // gap at detection (tissue at the step start, sphere at the step end)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  // on the tissue over the step (end-of-step value)
   bool active = false;              // the response applied a force
+  double k = 0;                     // penalty stiffness (force per length), SOFA's k1 k2 / (d + r)
 
   // The tissue point sum w_i x_i for positions x.
   Eigen::Vector3d point(const Eigen::Matrix3Xd& x) const {
@@ -58,8 +59,7 @@ struct ContactSettings {
   enum class Response { Penalty, Constraint } response = Response::Penalty;
   double alarmDistance = 1.0;
   double contactDistance = 0.5;
-  double mu = 0.0;         // Coulomb friction (constraint response)
-  double stiffness = 0.0;  // penalty stiffness per contact (force / length)
+  double mu = 0.0;  // Coulomb friction (constraint response)
 };
 
 // A sphere on a rigid body's frame origin: SOFA's SphereCollisionModel on a Rigid3d object.
@@ -69,6 +69,8 @@ class SphereCollisionModel : public Component {
   void init() override;
   RigidObject& body() const { return *body_; }
   double radius() const { return radius_; }
+  // SOFA's contactStiffness factor of the model (10 unless given).
+  double contactStiffness() const { return attrs().real("contactStiffness"); }
   Eigen::Vector3d centre() const;
 
  private:
@@ -107,7 +109,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   MechanicalObject& mstate() const override { return *state_; }
   const std::vector<std::array<int, 3>>& triangles() const { return tris_; }  // outward (right-hand rule)
   const std::vector<int>& vertices() const { return verts_; }
-  // Per-model penalty stiffness (`contactStiffness`), 0 if not given.
+  // SOFA's contactStiffness factor of the model (10 unless given).
   double contactStiffness() const { return stiffness_; }
   // Inactive when another model on the same body with more features covers it.
   bool active() const { return active_; }
@@ -152,7 +154,6 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   std::shared_ptr<Bvh> bvh_;
   std::vector<Contact> contacts_;
   bool penalty_ = false;
-  double k_ = 0;
 };
 
 // SOFA's MinProximityIntersection / LocalMinDistance: the alarm and contact distances.
@@ -190,8 +191,9 @@ class CollisionPipeline : public Component, public Stateful {
     in.get(maxContacts_);
   }
   const ContactSettings& settings() const { return settings_; }
-  // Finds this step's contacts (instrument at the step end, tissue at the step start).
-  void detect();
+  // Finds this step's contacts (instrument at the step end, tissue at the step start). Fails the
+  // step when spheres on two deformable bodies touch (contact between them is not handled).
+  std::optional<Diverged> detect(int stepIndex = 0, double t = 0);
   // After the solve: contact forces, the wrench on each instrument, statistics.
   void finish();
   const std::vector<SurfaceCollisionModel*>& surfaces() const { return surfaces_; }
@@ -208,6 +210,7 @@ class CollisionPipeline : public Component, public Stateful {
   double lastPenetration_ = -1e300, maxPenetration_ = -1e300;
   std::vector<SphereCollisionModel*> spheres_;
   std::vector<SurfaceCollisionModel*> surfaces_;
+  std::vector<NodeSphereCollisionModel*> nodeSpheres_;  // alone in the scene: they may not touch
   int maxContacts_ = 0;
 };
 

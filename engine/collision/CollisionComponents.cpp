@@ -29,7 +29,9 @@ void registerCollision(Registry& r) {
             "with nothing, so the scene may hold no other collision model.";
     s.add(AttrSpec::reals("radius").def("1").unit(Dimension::length()).help("sphere radius (one value; on a Vec3d object also one per node)"));
     s.add(AttrSpec::reals("listRadius").unit(Dimension::length()).linked().help("on a Vec3d object: one radius per node, e.g. \"@[-2].listRadius\" from a SphereLoader"));
-    s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("accepted for SOFA scenes; the penalty stiffness is the tissue model's"));
+    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).help(
+        "SOFA's stiffness factor: a penalty contact's stiffness is this times the surface's, over contactDistance "
+        "plus the radius (force per length in the scene's units)"));
     s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
     addSofaModelFlags(s);
     s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
@@ -55,7 +57,9 @@ void registerCollision(Registry& r) {
     s.aliases = {base + "Model", base + "SetModel"};
     s.category = "collision";
     s.doc = d[1];
-    s.add(AttrSpec::real("contactStiffness").atLeast(0).unit(Dimension::stiffness()).help("penalty stiffness per contact (force per length); required by the penalty response"));
+    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).help(
+        "SOFA's stiffness factor: a penalty contact's stiffness is this times the sphere's, over contactDistance plus "
+        "the sphere's radius (force per length in the scene's units)"));
     s.add(AttrSpec::link("topology").help("the topology whose boundary is the surface: tetrahedra, or hexahedra (default: the nearest in the node or above)"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.add(AttrSpec::boolean("bothSide").def("false").help("accepted for SOFA scenes; the outer side is used"));
@@ -110,7 +114,8 @@ void registerCollision(Registry& r) {
     s.aliases = {"DefaultContactManager", "RuleBasedContactManager"};
     s.category = "collision";
     s.doc = "How contacts respond. PenalityContactForceField: a spring k min(gap, 0) per contact whose stiffness "
-            "enters the implicit system (k is the tissue model's contactStiffness). FrictionContactConstraint: "
+            "enters the implicit system, k = k_sphere k_surface / (contactDistance + radius) from the models' "
+            "contactStiffness factors, as SOFA's. FrictionContactConstraint: "
             "non-penetration with Coulomb friction mu, solved after the free motion (needs FreeMotionAnimationLoop, "
             "GenericConstraintSolver and a constraint correction in the tissue's node).";
     s.add(AttrSpec::choice("response", {"PenalityContactForceField", "PenaltyContactForceField", "default",

@@ -169,4 +169,111 @@ void applyEmbedding(const TetEmbedding& embedding, const Eigen::Matrix3Xd& x, Ei
 }
 
 
+namespace {
+
+// Trilinear shape functions of a hexahedron in SOFA's node order at local coordinates u in [0,1]^3,
+// and their derivatives (8 x 3).
+void trilinear(const Eigen::Vector3d& u, Eigen::Matrix<double, 8, 1>& N, Eigen::Matrix<double, 8, 3>& dN) {
+  static const int corner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  for (int k = 0; k < 8; ++k) {
+    double f[3], d[3];
+    for (int a = 0; a < 3; ++a) {
+      f[a] = corner[k][a] ? u[a] : 1 - u[a];
+      d[a] = corner[k][a] ? 1.0 : -1.0;
+    }
+    N[k] = f[0] * f[1] * f[2];
+    dN.row(k) << d[0] * f[1] * f[2], f[0] * d[1] * f[2], f[0] * f[1] * d[2];
+  }
+}
+
+// Local coordinates of p in hexahedron h (Newton from its centre); false if it does not converge.
+bool localCoordinates(const Eigen::Matrix<double, 3, 8>& X, const Eigen::Vector3d& p, Eigen::Vector3d& u) {
+  u = Eigen::Vector3d::Constant(0.5);
+  Eigen::Matrix<double, 8, 1> N;
+  Eigen::Matrix<double, 8, 3> dN;
+  const double scale = (X.rowwise().maxCoeff() - X.rowwise().minCoeff()).norm();
+  for (int it = 0; it < 30; ++it) {
+    trilinear(u, N, dN);
+    const Eigen::Vector3d r = X * N - p;
+    if (r.norm() <= 1e-13 * scale) return true;
+    const Eigen::Matrix3d J = X * dN;
+    const Eigen::Vector3d step = J.fullPivLu().solve(r);
+    if (!step.allFinite()) return false;
+    u -= step;
+  }
+  trilinear(u, N, dN);
+  return (X * N - p).norm() <= 1e-9 * scale;
+}
+
+double boxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eigen::Vector3d& p) {
+  return (p.cwiseMax(lo).cwiseMin(hi) - p).norm();
+}
+
+}  // namespace
+
+int HexEmbedding::extrapolatedCount() const {
+  int n = 0;
+  for (int p = 0; p < size(); ++p) n += distance[p] > 0;
+  return n;
+}
+
+HexEmbedding embedInHexahedra(const Eigen::Matrix3Xd& nodes, const HexList& hexa, const Eigen::Matrix3Xd& points) {
+  const int n = static_cast<int>(points.cols());
+  HexEmbedding e;
+  e.nodes.resize(8, n);
+  e.weights.resize(8, n);
+  e.distance.resize(n);
+  std::vector<Eigen::Matrix<double, 3, 8>> X(hexa.size());
+  std::vector<Eigen::Vector3d> lo(hexa.size()), hi(hexa.size());
+  for (size_t h = 0; h < hexa.size(); ++h) {
+    for (int k = 0; k < 8; ++k) X[h].col(k) = nodes.col(hexa[h][k]);
+    lo[h] = X[h].rowwise().minCoeff();
+    hi[h] = X[h].rowwise().maxCoeff();
+  }
+  for (int p = 0; p < n; ++p) {
+    const Eigen::Vector3d q = points.col(p);
+    int chosen = -1;
+    Eigen::Vector3d u;
+    double nearest = std::numeric_limits<double>::infinity();
+    int nearestHex = -1;
+    for (size_t h = 0; h < hexa.size(); ++h) {
+      const double d = boxDistance(lo[h], hi[h], q);
+      if (d < nearest) {
+        nearest = d;
+        nearestHex = static_cast<int>(h);
+      }
+      if (d > 1e-9 * (hi[h] - lo[h]).norm()) continue;
+      Eigen::Vector3d v;
+      if (localCoordinates(X[h], q, v) && v.minCoeff() >= -1e-9 && v.maxCoeff() <= 1 + 1e-9) {
+        chosen = static_cast<int>(h);
+        u = v;
+        break;
+      }
+    }
+    double distance = 0;
+    if (chosen < 0) {
+      chosen = nearestHex;
+      distance = std::max(nearest, 1e-300);  // outside: extrapolated
+      if (!localCoordinates(X[chosen], q, u)) u = Eigen::Vector3d::Constant(0.5);
+    }
+    Eigen::Matrix<double, 8, 1> N;
+    Eigen::Matrix<double, 8, 3> dN;
+    trilinear(u, N, dN);
+    for (int k = 0; k < 8; ++k) e.nodes(k, p) = hexa[chosen][k];
+    e.weights.col(p) = N;
+    e.distance[p] = distance;
+  }
+  return e;
+}
+
+void applyEmbedding(const HexEmbedding& embedding, const Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& out) {
+  const int n = embedding.size();
+  out.resize(3, n);
+  for (int p = 0; p < n; ++p) {
+    Eigen::Vector3d v = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 8; ++k) v += embedding.weights(k, p) * x.col(embedding.nodes(k, p));
+    out.col(p) = v;
+  }
+}
+
 }  // namespace viscera

@@ -40,6 +40,24 @@ TetEmbedding embedInTetrahedra(const Eigen::Matrix3Xd& nodes, const TetList& tet
 // placed (element >= 0).
 void applyEmbedding(const TetEmbedding& embedding, const Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& out);
 
+// Points embedded in trilinear hexahedra (a grid's cells, SOFA's order): each point follows one
+// hexahedron through its trilinear shape functions at the point's local coordinates there.
+struct HexEmbedding {
+  Eigen::Matrix<int, 8, Eigen::Dynamic> nodes;     // 8 x #points
+  Eigen::Matrix<double, 8, Eigen::Dynamic> weights;  // 8 x #points (sum 1; some negative when extrapolated)
+  Eigen::VectorXd distance;                         // #points: distance to that hexahedron's box (0 inside)
+  int size() const { return static_cast<int>(distance.size()); }
+  int extrapolatedCount() const;
+};
+
+// Embeds `points` in the hexahedra: a point inside one (local coordinates in [0, 1] up to 1e-9,
+// found by Newton's method on the trilinear map from the candidates whose boxes hold it) follows
+// it; any other point follows the hexahedron whose box is nearest, with its unclamped local
+// coordinates (exact for affine motions). Returns the distances in `distance` for the caller to
+// judge; it needs at least one hexahedron.
+HexEmbedding embedInHexahedra(const Eigen::Matrix3Xd& nodes, const HexList& hexa, const Eigen::Matrix3Xd& points);
+void applyEmbedding(const HexEmbedding& embedding, const Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& out);
+
 // Euclidean distance from p to the solid tetrahedron (a, b, c, d); 0 inside.
 double distanceToTetrahedron(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                              const Eigen::Vector3d& c, const Eigen::Vector3d& d);

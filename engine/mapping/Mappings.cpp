@@ -1,6 +1,7 @@
 // Mappings from a deformable body to points that follow it, a visual surface or a mapped state:
 // BarycentricMapping (the points embedded in the tetrahedra) and IdentityMapping (the points are
 // the body's nodes).
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -174,50 +175,87 @@ class BarycentricMapping : public PointMapping {
 
   void init() override {
     resolveEnds();
+    // SOFA's barycentric mappers: on tetrahedra, or on a grid's hexahedra (trilinear).
     const TetList* tets = tetrahedraAbove(scene(), input_->node());
-    if (!tets)
+    const HexList* hexa = tets ? nullptr : hexahedraAbove(scene(), input_->node());
+    if (!tets && !hexa)
       throw error("input", "MechanicalObject '" + input_->name() +
-                               "' has no tetrahedra in its node or above to embed the surface in");
-    if (tets->maxCoeff() >= input_->size())
-      throw error("input", "the tetrahedra refer to node " + std::to_string(tets->maxCoeff()) + ", but MechanicalObject '" +
+                               "' has no tetrahedra or hexahedra in its node or above to embed the points in");
+    const int maxNode = tets ? tets->maxCoeff() : maxNodeOf(*hexa);
+    if (maxNode >= input_->size())
+      throw error("input", "the elements refer to node " + std::to_string(maxNode) + ", but MechanicalObject '" +
                                input_->name() + "' has " + std::to_string(input_->size()) + " nodes");
     // SOFA embeds in the positions at the start unless useRestPosition is set; the two differ only
     // when the MechanicalObject gives both `position` and `rest_position`.
     const Eigen::Matrix3Xd& nodes = attrs_.boolean("useRestPosition") ? input_->x0 : input_->x;
-    const double reach = attrs_.isSet("maxDistance") ? attrs_.real("maxDistance") : meanEdgeLength(nodes, *tets);
-    embedding_ = embedInTetrahedra(nodes, *tets, output_.initial, reach);
+    const double reach = attrs_.isSet("maxDistance") ? attrs_.real("maxDistance")
+                         : tets                      ? meanEdgeLength(nodes, *tets)
+                                                     : meanHexahedronEdge(nodes, *hexa);
+    Eigen::VectorXd distance;
+    if (tets) {
+      embedding_ = embedInTetrahedra(nodes, *tets, output_.initial, reach);
+      distance = embedding_.distance;
+    } else {
+      hexEmbedding_ = embedInHexahedra(nodes, *hexa, output_.initial);
+      distance = hexEmbedding_.distance;
+      hexa_ = true;
+    }
 
     const std::string units = scene().units().str();
     const std::string unit = units.substr(0, units.find(' '));  // the length unit, for messages
-    if (const int unplaced = embedding_.unplacedCount()) {
-      int first = 0;
-      while (embedding_.element[first] >= 0) ++first;
+    int unplaced = 0, first = -1, outside = 0;
+    for (int p = 0; p < distance.size(); ++p) {
+      if (!(distance[p] <= reach)) {
+        ++unplaced;
+        if (first < 0) first = p;
+      } else if (distance[p] > 0) {
+        ++outside;
+      }
+    }
+    if (unplaced) {
       const Eigen::Vector3d p = output_.initial.col(first);
-      const double nearest = nearestTetrahedron(nodes, *tets, p).second;
+      const double nearest = tets ? nearestTetrahedron(nodes, *tets, p).second : distance[first];
       const std::string limit = formatNumber(reach) + " " + unit +
                                 (attrs_.isSet("maxDistance") ? "" : " (the default: the mean edge length)");
       const std::string where = "(" + formatNumber(p.x()) + ", " + formatNumber(p.y()) + ", " + formatNumber(p.z()) + ")";
       throw error("maxDistance", std::to_string(unplaced) + " of " + std::to_string(output_.size()) + " points of '" +
-                                     output_.name() + "' are farther than " + limit + " from every tetrahedron of '" +
-                                     input_->name() + "'; point " + std::to_string(first) + " at " + where + " is " +
-                                     formatNumber(nearest) + " " + unit +
+                                     output_.name() + "' are farther than " + limit + " from every " +
+                                     (tets ? "tetrahedron" : "hexahedron") + " of '" + input_->name() + "'; point " +
+                                     std::to_string(first) + " at " + where + " is " + formatNumber(nearest) + " " + unit +
                                      " from the nearest. Check the surface's units and placement (scale3d, rotation, "
                                      "translation), or raise maxDistance");
     }
-    if (const int outside = embedding_.extrapolatedCount()) {
+    if (outside) {
       scene().addNote(loc().str() + ": note: BarycentricMapping '" + name() + "': " + std::to_string(outside) + " of " +
-                      std::to_string(output_.size()) + " points of '" + output_.name() +
-                      "' lie outside the tetrahedra (up to " + formatNumber(embedding_.distance.maxCoeff()) + " " + unit +
-                      " away); they follow the nearest tetrahedron, extrapolated");
+                      std::to_string(output_.size()) + " points of '" + output_.name() + "' lie outside the " +
+                      (tets ? "tetrahedra" : "hexahedra") + " (up to " + formatNumber(distance.maxCoeff()) + " " + unit +
+                      " away); they follow the nearest one, extrapolated");
     }
   }
 
   void apply() override {
-    write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
+    if (hexa_) write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(hexEmbedding_, in, out); });
+    else write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
   }
 
  private:
+  static int maxNodeOf(const HexList& hexa) {
+    int m = -1;
+    for (const auto& h : hexa)
+      for (int v : h) m = std::max(m, v);
+    return m;
+  }
+  // Mean length of the three edges at each hexahedron's first corner.
+  static double meanHexahedronEdge(const Eigen::Matrix3Xd& x, const HexList& hexa) {
+    double sum = 0;
+    for (const auto& h : hexa)
+      sum += (x.col(h[1]) - x.col(h[0])).norm() + (x.col(h[3]) - x.col(h[0])).norm() + (x.col(h[4]) - x.col(h[0])).norm();
+    return hexa.empty() ? 0.0 : sum / (3.0 * hexa.size());
+  }
+
   TetEmbedding embedding_;
+  HexEmbedding hexEmbedding_;
+  bool hexa_ = false;
 };
 
 class IdentityMapping : public PointMapping {
@@ -266,7 +304,8 @@ void registerMappings(Registry& r) {
     s.name = "BarycentricMapping";
     s.category = "mapping";
     s.doc = "Moves a visual surface, or a mapped MechanicalObject (positions and velocities), with the tetrahedra of a "
-            "deformable body. At init each point gets the "
+            "deformable body, or with the hexahedra of a grid (trilinear coordinates; SOFA's free-form deformation). At "
+            "init each point gets the "
             "tetrahedron that contains it (found through a bounding-volume hierarchy) and its barycentric coordinates "
             "there; every step x_point = sum w_i x_i over that tetrahedron's four nodes. A point outside every "
             "tetrahedron but within maxDistance follows the nearest one with unclamped coordinates (extrapolation, "

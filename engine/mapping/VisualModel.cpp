@@ -137,6 +137,19 @@ const TetList* tetrahedraAbove(Scene& scene, const Node& from) {
   return nullptr;
 }
 
+const HexList* hexahedraAbove(Scene& scene, const Node& from) {
+  for (const Node* n = &from; n; n = n->parent()) {
+    const auto& comps = n->components();
+    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
+      auto* t = dynamic_cast<Topology*>(it->get());
+      if (!t) continue;
+      scene.initComponent(**it);
+      if (!t->hexahedra().empty()) return &t->hexahedra();
+    }
+  }
+  return nullptr;
+}
+
 void checkVec3Template(const Component& c) {
   const std::string& t = c.attrs().str("template");
   std::vector<std::string> parts;

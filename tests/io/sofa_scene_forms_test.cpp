@@ -286,7 +286,7 @@ TEST(SofaSceneForms, SpheresMappedOnABodyFollowItThroughPositionalLinks) {
       <SphereCollisionModel name="model" listRadius="@[-3].listRadius"/>
       <BarycentricMapping input="@../dofs" output="@spheres"/>)";
   auto scene = sceneWith(surf);
-  EXPECT_TRUE(hasNote(*scene, "is the scene's only collision model"));
+  EXPECT_TRUE(hasNote(*scene, "a model does not collide with itself"));
   Simulation sim(*scene);
   for (int i = 0; i < 5; ++i) ASSERT_FALSE(sim.step());
   const MechanicalObject& dofs = object(*scene, "dofs");
@@ -316,9 +316,9 @@ TEST(SofaSceneForms, SpheresMappedOnABodyFollowItThroughPositionalLinks) {
       <UniformMass totalMass="1"/><BarycentricMapping input="@../dofs" output="@spheres"/>)");
   });
   EXPECT_NE(e.find("forces and constraints on a mapped state are not carried back"), std::string::npos) << e;
-  // Spheres on a deformable body beside another collision model: deformable contact is refused.
+  // Spheres on a deformable body beside an instrument: contact with a deformable body's spheres is refused.
   e = errorOf([&] {
-    sceneWith(surf + R"(<Node name="other"><MechanicalObject position="0 0 3"/><SphereCollisionModel radius="1"/></Node>)");
+    sceneWith(surf + R"(<Node name="other"><MechanicalObject template="Rigid3d" position="0 0 3 0 0 0 1"/><SphereCollisionModel radius="1"/></Node>)");
   });
   EXPECT_NE(e.find("contact between deformable bodies is not handled"), std::string::npos) << e;
   // Sphere files: the line of a bad entry, and a count that does not match.
@@ -329,4 +329,75 @@ TEST(SofaSceneForms, SpheresMappedOnABodyFollowItThroughPositionalLinks) {
   write(dir / "body.sph", "sph 1.0\nnums 3\nsphe 1 0 0 0 1\n");
   e = errorOf([&] { sceneWith(surf); });
   EXPECT_NE(e.find("\"nums\" announces 3 spheres but the file has 1"), std::string::npos) << e;
+}
+
+// BarycentricMapping on a grid without tetrahedra (SOFA's free-form deformation): each point
+// follows the trilinear interpolation of the cell it lies in (a point outside follows the nearest
+// cell, extrapolated), for positions and velocities; checked against trilinear weights computed
+// here from the grid's node order.
+TEST(SofaSceneForms, PointsFollowAGridThroughTrilinearCoordinates) {
+  TempDir dir;
+  write(dir / "scene.scn", R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <Node name="body">
+    <EulerImplicitSolver/><CGLinearSolver iterations="200" tolerance="1e-12" threshold="1e-20"/>
+    <MechanicalObject name="dofs"/>
+    <UniformMass totalMass="1"/>
+    <RegularGridTopology nx="3" ny="3" nz="3" xmin="0" xmax="2" ymin="0" ymax="2" zmin="0" zmax="2"/>
+    <BoxConstraint box="-0.1 -0.1 -0.1 2.1 2.1 0.1"/>
+    <RegularGridSpringForceField stiffness="50" damping="0.1"/>
+    <Node name="mapped">
+      <MechanicalObject name="points" position="0.5 0.5 0.5  1.5 0.25 1.8  2.2 1 1"/>
+      <BarycentricMapping input="@../dofs" output="@points"/>
+    </Node>
+  </Node>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  EXPECT_TRUE(hasNote(*scene, "1 of 3 points of 'points' lie outside the hexahedra"));
+  Simulation sim(*scene);
+  for (int i = 0; i < 20; ++i) ASSERT_FALSE(sim.step());
+  const MechanicalObject& dofs = object(*scene, "dofs");
+  const MechanicalObject& points = object(*scene, "points");
+  // Node (i, j, k) of the 3 x 3 x 3 grid is i + 3 (j + 3 k); cell (ci, cj, ck), local u in [0, 1]^3.
+  auto trilinear = [&](const Eigen::Matrix3Xd& x, int ci, int cj, int ck, Eigen::Vector3d u) {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 8; ++c) {
+      const int a = c & 1, b = (c >> 1) & 1, d = (c >> 2) & 1;
+      const double w = (a ? u[0] : 1 - u[0]) * (b ? u[1] : 1 - u[1]) * (d ? u[2] : 1 - u[2]);
+      p += w * x.col((ci + a) + 3 * ((cj + b) + 3 * (ck + d)));
+    }
+    return p;
+  };
+  EXPECT_GT((dofs.x - dofs.x0).norm(), 1e-3);  // the body has sagged
+  EXPECT_LT((points.x.col(0) - trilinear(dofs.x, 0, 0, 0, Eigen::Vector3d(0.5, 0.5, 0.5))).norm(), 1e-12);
+  EXPECT_LT((points.x.col(1) - trilinear(dofs.x, 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
+  EXPECT_LT((points.v.col(1) - trilinear(dofs.v, 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
+  // Outside, beyond x = 2: the nearest cell's coordinates run past 1.
+  EXPECT_LT((points.x.col(2) - trilinear(dofs.x, 1, 0, 0, Eigen::Vector3d(1.2, 1.0, 1.0))).norm(), 1e-9);
+}
+
+// Sphere sets on two deformable bodies are accepted while apart; when they touch, the step fails
+// and names both (contact between deformable bodies is not handled).
+TEST(SofaSceneForms, SpheresOnTwoBodiesStopTheRunWhenTheyTouch) {
+  TempDir dir;
+  auto body = [](const std::string& name, double x) {
+    const std::string p = std::to_string(x);
+    return "<Node name=\"" + name + "\"><EulerImplicitSolver/><CGLinearSolver/>"
+           "<MechanicalObject name=\"" + name + "_dofs\" position=\"" + p + " 0 0\"/><UniformMass totalMass=\"1\"/>"
+           "<SphereCollisionModel name=\"" + name + "_spheres\" radius=\"0.5\"/></Node>";
+  };
+  write(dir / "apart.scn", "<Node name=\"root\" gravity=\"0 0 0\"><CollisionPipeline/><DiscreteIntersection/>" +
+                               body("a", 0) + body("b", 3) + "</Node>");
+  auto scene = buildScene(io::readScene(dir / "apart.scn"));
+  scene->init();
+  Simulation apart(*scene);
+  EXPECT_FALSE(apart.step());
+  write(dir / "touch.scn", "<Node name=\"root\" gravity=\"0 0 0\"><CollisionPipeline/><DiscreteIntersection/>" +
+                               body("a", 0) + body("b", 0.8) + "</Node>");
+  scene = buildScene(io::readScene(dir / "touch.scn"));
+  scene->init();
+  Simulation touch(*scene);
+  const auto failed = touch.step();
+  ASSERT_TRUE(failed);
+  EXPECT_NE(failed->reason.find("spheres of 'a_spheres' and 'b_spheres' touch"), std::string::npos) << failed->reason;
 }

@@ -77,7 +77,9 @@ std::string sceneXml(const Case& s) {
     x << "    <TriangleCollisionModel/>\n"
       << "    <PrecomputedConstraintCorrection/>\n";
   else
-    x << "    <TriangleCollisionModel contactStiffness=\"200 N/m\"/>\n";
+    // 200 N/m (2e5 g/s^2) per contact: SOFA's k_sphere k_surface / (contactDistance + radius),
+    // with the sphere's default factor 10.
+    x << "    <TriangleCollisionModel contactStiffness=\"" << 2e5 * (0.2 + 5) / 10 << "\"/>\n";
   x << "  </Node>\n</Node>\n";
   return x.str();
 }

@@ -97,8 +97,9 @@ std::string sceneXml(bool constraint, const std::string& trajectory) {
         <PrecomputedConstraintCorrection/>
 )";
   else
-    s << R"(        <TriangleCollisionModel contactStiffness="5000 N/m"/>
-)";
+    // 5000 N/m (5e6 g/s^2) per contact: SOFA's k_sphere k_surface / (contactDistance + radius),
+    // with the sphere's default factor 10.
+    s << "        <TriangleCollisionModel contactStiffness=\"" << 5e6 * (kContactDistance + kRadius) / 10 << "\"/>\n";
   s << R"(    </Node>
 </Node>
 )";
