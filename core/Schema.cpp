@@ -53,7 +53,15 @@ bool isCosmeticAttribute(const std::string& name) {
                                 // SOFA: the matrix storage a linear solver uses, and its threading
                                 "linearSystem", "parallelInverseProduct",
                                 // SOFA: a node's old ordering hint, and a solver's residual printout
-                                "depend", "computeResidual"};
+                                "depend", "computeResidual",
+                                // SOFA: element lists an ROI or a grid also outputs, drawing switches
+                                "computeTriangles", "computeEdges", "computeTetrahedra", "computeHexahedra",
+                                "computeQuads", "computeHexaList", "computeQuadList", "computeTriangleList",
+                                "computeEdgeList", "computePointList", "isVisible",
+                                // SOFA: OpenGL blending of a visual model
+                                "blendEquation", "sourceBlendingFactor", "destinationBlendingFactor",
+                                // SOFA: assemble the element matrices into one global matrix (same forces)
+                                "assembling"};
   for (const char* e : exact)
     if (name == e) return true;
   return name.rfind("draw", 0) == 0 || name.rfind("show", 0) == 0;

@@ -177,7 +177,8 @@ class BarycentricMapping : public PointMapping {
     resolveEnds();
     // SOFA's barycentric mappers: on tetrahedra, or on a grid's hexahedra (trilinear).
     const TetList* tets = tetrahedraAbove(scene(), input_->node());
-    const HexList* hexa = tets ? nullptr : hexahedraAbove(scene(), input_->node());
+    const Topology* grid = tets ? nullptr : hexahedraAbove(scene(), input_->node());
+    const HexList* hexa = grid ? &grid->hexahedra() : nullptr;
     if (!tets && !hexa)
       throw error("input", "MechanicalObject '" + input_->name() +
                                "' has no tetrahedra or hexahedra in its node or above to embed the points in");
@@ -187,7 +188,12 @@ class BarycentricMapping : public PointMapping {
                                input_->name() + "' has " + std::to_string(input_->size()) + " nodes");
     // SOFA embeds in the positions at the start unless useRestPosition is set; the two differ only
     // when the MechanicalObject gives both `position` and `rest_position`.
-    const Eigen::Matrix3Xd& nodes = attrs_.boolean("useRestPosition") ? input_->x0 : input_->x;
+    // On a grid, as SOFA's grid mapper, the points are located in the grid's own geometry, before
+    // any placement of the MechanicalObject (dx, rx, ...), which then carries them along.
+    const bool gridGeometry = grid && grid->points().cols() == input_->size();
+    const Eigen::Matrix3Xd& nodes = gridGeometry                        ? grid->points()
+                                    : attrs_.boolean("useRestPosition") ? input_->x0
+                                                                        : input_->x;
     const double reach = attrs_.isSet("maxDistance") ? attrs_.real("maxDistance")
                          : tets                      ? meanEdgeLength(nodes, *tets)
                                                      : meanHexahedronEdge(nodes, *hexa);

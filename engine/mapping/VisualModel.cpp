@@ -137,14 +137,14 @@ const TetList* tetrahedraAbove(Scene& scene, const Node& from) {
   return nullptr;
 }
 
-const HexList* hexahedraAbove(Scene& scene, const Node& from) {
+const Topology* hexahedraAbove(Scene& scene, const Node& from) {
   for (const Node* n = &from; n; n = n->parent()) {
     const auto& comps = n->components();
     for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
       auto* t = dynamic_cast<Topology*>(it->get());
       if (!t) continue;
       scene.initComponent(**it);
-      if (!t->hexahedra().empty()) return &t->hexahedra();
+      if (!t->hexahedra().empty()) return t;
     }
   }
   return nullptr;
@@ -190,6 +190,7 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));
   s.add(AttrSpec::string("texturename").help(drawingOnly));
+  s.add(AttrSpec::reals("normals").help(drawingOnly));
   for (const char* flag : {"useNormals", "updateNormals", "computeTangents", "handleDynamicTopology"})
     s.add(AttrSpec::boolean(flag).help(drawingOnly));
   s.factory = [](BuildContext& c) { return std::make_unique<VisualModel>(c); };

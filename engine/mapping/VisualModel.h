@@ -44,8 +44,8 @@ class VisualModel : public Component {
 // nearest ancestor that has one (as the force fields find theirs); initialises the topologies it
 // looks at. nullptr if there is none.
 const TetList* tetrahedraAbove(Scene& scene, const Node& from);
-// The hexahedra of the nearest topology in `from` or above that has some (a grid), or nullptr.
-const HexList* hexahedraAbove(Scene& scene, const Node& from);
+// The nearest topology in `from` or above that has hexahedra (a grid), or nullptr.
+const Topology* hexahedraAbove(Scene& scene, const Node& from);
 
 // Checks a `template` attribute of a visual model or mapping: one or two (input,output) vector
 // types of three coordinates (Vec3d, Vec3f, Vec3, ExtVec3f, ExtVec3d); SOFA's float variants run in

@@ -1,5 +1,7 @@
-// Topologies: RegularGridTopology, the tetrahedron and triangle containers, the topological
-// mappings that fill them (Hexa2Tetra, Tetra2Triangle), and the mesh and surface loaders.
+// Topologies: regular and sparse grids, the tetrahedron, triangle and quad containers, SOFA's general
+// MeshTopology, the topological mappings that fill them, and the mesh, surface and sphere loaders.
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -358,6 +360,227 @@ class SphereLoader : public Component {
   io::SphereSet spheres_;
 };
 
+// SOFA's MeshTopology (and HexahedronSetTopologyContainer): any of points, triangles, quads,
+// tetrahedra and hexahedra, from a file, a loader or grid (`src`), or explicit lists.
+class GeneralMeshTopology : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    if (spec().find("filename") && attrs_.isSet("filename")) readFile(scene().resolvePath(attrs_.str("filename")));
+    if (attrs_.isSet("src")) {
+      Component* c = linkedComponent("src");
+      FieldValue f;
+      if (auto* t = dynamic_cast<Topology*>(c)) {
+        points_ = t->points();
+        tets_ = t->tetrahedra();
+        hexa_ = t->hexahedra();
+      } else if (c->field("position", f)) {
+        points_ = Eigen::Map<const Eigen::Matrix3Xd>(f.values.data(), 3, static_cast<Eigen::Index>(f.values.size() / 3));
+      } else {
+        throw error("src", "does not link to a loader or topology");
+      }
+      if (c->field("triangles", f)) tris_ = faces<3>("src", f.values);
+      if (c->field("quads", f)) quads_ = faces<4>("src", f.values);
+    }
+    if (attrs_.isSet("position")) {
+      const auto p = linkedReals("position");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+    }
+    if (spec().find("triangles") && attrs_.isSet("triangles")) tris_ = faces<3>("triangles", linkedReals("triangles"));
+    if (spec().find("quads") && attrs_.isSet("quads")) quads_ = faces<4>("quads", linkedReals("quads"));
+    if (spec().find("tetrahedra") && attrs_.isSet("tetrahedra")) tets_ = faces<4>("tetrahedra", linkedReals("tetrahedra"));
+    if (attrs_.isSet("hexahedra")) {
+      const auto h = faces<8>("hexahedra", linkedReals("hexahedra"));
+      hexa_.resize(h.cols());
+      for (Eigen::Index e = 0; e < h.cols(); ++e)
+        for (int k = 0; k < 8; ++k) hexa_[e][k] = h(k, e);
+    }
+    if (points_.cols() > 0 && tets_.cols() > 0) {
+      io::VolumeMesh m{points_, tets_, {}};
+      try {
+        io::checkTetMesh(m, name());
+      } catch (const Error& e) {
+        throw error(e.what());
+      }
+    }
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return tets_; }
+  const HexList& hexahedra() const override { return hexa_; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "triangles" && tris_.cols() > 0) out.values.assign(tris_.data(), tris_.data() + tris_.size());
+    else if (name == "quads" && quads_.cols() > 0) out.values.assign(quads_.data(), quads_.data() + quads_.size());
+    else if (name == "tetrahedra") out.values.assign(tets_.data(), tets_.data() + tets_.size());
+    else if (name == "hexahedra") {
+      out.values.clear();
+      for (const auto& h : hexa_) out.values.insert(out.values.end(), h.begin(), h.end());
+    } else return false;
+    return true;
+  }
+
+ private:
+  template <int K>
+  Eigen::Matrix<int, K, Eigen::Dynamic> faces(const std::string& attr, const std::vector<double>& v) const {
+    if (v.size() % K) throw error(attr, "expects " + std::to_string(K) + " node indices per element, got " + std::to_string(v.size()) + " values");
+    Eigen::Matrix<int, K, Eigen::Dynamic> f(K, static_cast<Eigen::Index>(v.size() / K));
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!(v[i] >= 0 && v[i] < 2147483647.0) || v[i] != std::floor(v[i]))
+        throw error(attr, "node index " + formatNumber(v[i]) + " is not a valid index");
+      if (points_.cols() > 0 && v[i] >= points_.cols())
+        throw error(attr, "refers to node " + formatNumber(v[i]) + ", but there are " + std::to_string(points_.cols()) + " points");
+      f.data()[i] = static_cast<int>(v[i]);
+    }
+    return f;
+  }
+  void readFile(const std::string& path) {
+    if (!std::filesystem::exists(path)) throw error("filename", "mesh file '" + path + "' does not exist");
+    std::string ext = std::filesystem::path(path).extension().string();
+    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    try {
+      if (ext == ".obj" || ext == ".stl" || ext == ".off" || ext == ".ply") {
+        const auto surface = io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
+        points_ = surface->points;
+        tris_ = surface->triangles;
+      } else {
+        const auto mesh = io::cachedRead<io::VolumeMesh>(path, [](const std::string& p) { return io::readVolumeMesh(p); });
+        points_ = mesh->points;
+        tets_ = mesh->tets;
+        tris_ = mesh->triangles;
+      }
+    } catch (const Error& e) {
+      throw error("filename", e.what());
+    }
+  }
+
+  Eigen::Matrix3Xd points_;
+  TetList tets_;
+  HexList hexa_;
+  Eigen::Matrix<int, 3, Eigen::Dynamic> tris_;
+  Eigen::Matrix<int, 4, Eigen::Dynamic> quads_;
+};
+
+// SOFA's SparseGridTopology: the cells of a regular grid over a closed surface's bounding box that
+// the surface crosses or encloses, as hexahedra. A cell is on the boundary when a triangle meets
+// it (separating-axis test), outside when it connects to the grid's border through cells the
+// surface does not meet, inside otherwise. Nodes are the kept cells' corners, in grid order.
+class SparseGridTopology : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    const std::string path = scene().resolvePath(attrs_.str("fileTopology"));
+    if (!std::filesystem::exists(path)) throw error("fileTopology", "surface file '" + path + "' does not exist");
+    io::SurfaceMesh surface;
+    try {
+      surface = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
+    } catch (const Error& e) {
+      throw error("fileTopology", e.what());
+    }
+    const auto& nn = attrs_.ints("n");
+    const std::array<int, 3> n{nn[0], nn[1], nn[2]};
+    for (int a = 0; a < 3; ++a)
+      if (n[a] < 2) throw error("n", "needs at least 2 nodes per axis (one cell)");
+    if (static_cast<long double>(n[0]) * n[1] * n[2] > kMaxGridNodes) throw error("n", "makes more than " + std::to_string(kMaxGridNodes) + " nodes");
+    const Eigen::Vector3d lo = surface.points.rowwise().minCoeff(), hi = surface.points.rowwise().maxCoeff();
+    const Eigen::Matrix3Xd grid = gridPoints(n, lo, hi);
+    const HexList cells = gridHexahedra(n);
+    const std::array<int, 3> c{n[0] - 1, n[1] - 1, n[2] - 1};
+    const Eigen::Vector3d step((hi - lo).cwiseQuotient(Eigen::Vector3d(c[0], c[1], c[2])));
+    auto cellIndex = [&](int i, int j, int k) { return i + c[0] * (j + c[1] * k); };
+    enum : char { Unknown, Boundary, Outside };
+    std::vector<char> type(cells.size(), Unknown);
+    for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
+      const Eigen::Vector3d v0 = surface.points.col(surface.triangles(0, t)), v1 = surface.points.col(surface.triangles(1, t)),
+                            v2 = surface.points.col(surface.triangles(2, t));
+      const Eigen::Vector3d tlo = v0.cwiseMin(v1).cwiseMin(v2), thi = v0.cwiseMax(v1).cwiseMax(v2);
+      std::array<int, 3> from{}, to{};
+      for (int a = 0; a < 3; ++a) {
+        from[a] = std::clamp(static_cast<int>(std::floor((tlo[a] - lo[a]) / step[a])) - 1, 0, c[a] - 1);
+        to[a] = std::clamp(static_cast<int>(std::floor((thi[a] - lo[a]) / step[a])) + 1, 0, c[a] - 1);
+      }
+      for (int k = from[2]; k <= to[2]; ++k)
+        for (int j = from[1]; j <= to[1]; ++j)
+          for (int i = from[0]; i <= to[0]; ++i) {
+            const Eigen::Vector3d cmin = lo + Eigen::Vector3d(i * step[0], j * step[1], k * step[2]);
+            if (triangleMeetsBox(v0, v1, v2, cmin + 0.5 * step, 0.5 * step)) type[cellIndex(i, j, k)] = Boundary;
+          }
+    }
+    // Flood the outside from the border cells the surface does not meet.
+    std::vector<int> stack;
+    for (int k = 0; k < c[2]; ++k)
+      for (int j = 0; j < c[1]; ++j)
+        for (int i = 0; i < c[0]; ++i)
+          if ((i == 0 || j == 0 || k == 0 || i == c[0] - 1 || j == c[1] - 1 || k == c[2] - 1) && type[cellIndex(i, j, k)] == Unknown) {
+            type[cellIndex(i, j, k)] = Outside;
+            stack.push_back(cellIndex(i, j, k));
+          }
+    while (!stack.empty()) {
+      const int id = stack.back();
+      stack.pop_back();
+      const int i = id % c[0], j = (id / c[0]) % c[1], k = id / (c[0] * c[1]);
+      const int next[6][3] = {{i - 1, j, k}, {i + 1, j, k}, {i, j - 1, k}, {i, j + 1, k}, {i, j, k - 1}, {i, j, k + 1}};
+      for (const auto& q : next) {
+        if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= c[0] || q[1] >= c[1] || q[2] >= c[2]) continue;
+        const int nid = cellIndex(q[0], q[1], q[2]);
+        if (type[nid] != Unknown) continue;
+        type[nid] = Outside;
+        stack.push_back(nid);
+      }
+    }
+    // The kept cells' corners, numbered in grid order.
+    std::vector<int> newIndex(grid.cols(), -1);
+    for (size_t e = 0; e < cells.size(); ++e)
+      if (type[e] != Outside)
+        for (int v : cells[e]) newIndex[v] = 0;
+    int count = 0;
+    for (int& v : newIndex)
+      if (v == 0) v = count++;
+    if (count == 0) throw error("fileTopology", "the surface encloses no cell of the grid");
+    points_.resize(3, count);
+    for (Eigen::Index v = 0; v < grid.cols(); ++v)
+      if (newIndex[v] >= 0) points_.col(newIndex[v]) = grid.col(v);
+    for (size_t e = 0; e < cells.size(); ++e)
+      if (type[e] != Outside) {
+        std::array<int, 8> h{};
+        for (int k = 0; k < 8; ++k) h[k] = newIndex[cells[e][k]];
+        hexa_.push_back(h);
+      }
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  const HexList& hexahedra() const override { return hexa_; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  // Separating-axis test of a triangle against an axis-aligned box (centre, half sizes).
+  static bool triangleMeetsBox(Eigen::Vector3d a, Eigen::Vector3d b, Eigen::Vector3d c, const Eigen::Vector3d& centre,
+                               const Eigen::Vector3d& half) {
+    a -= centre;
+    b -= centre;
+    c -= centre;
+    const Eigen::Vector3d e[3] = {b - a, c - b, a - c};
+    auto separated = [&](const Eigen::Vector3d& axis) {
+      if (axis.squaredNorm() < 1e-30) return false;
+      const double pa = a.dot(axis), pb = b.dot(axis), pc = c.dot(axis);
+      const double r = half.x() * std::abs(axis.x()) + half.y() * std::abs(axis.y()) + half.z() * std::abs(axis.z());
+      return std::min({pa, pb, pc}) > r || std::max({pa, pb, pc}) < -r;
+    };
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (separated(Eigen::Vector3d::Unit(i).cross(e[j]))) return false;
+    for (int i = 0; i < 3; ++i)
+      if (separated(Eigen::Vector3d::Unit(i))) return false;
+    return !separated(e[0].cross(e[1]));
+  }
+
+  Eigen::Matrix3Xd points_;
+  HexList hexa_;
+};
+
 // What every mesh loader declares: the file, its placement and SOFA's normal flip.
 void addLoaderAttributes(ComponentSpec& s) {
   s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file or found along the data search path"));
@@ -384,13 +607,47 @@ void registerTopologies(Registry& r) {
   {
     ComponentSpec s;
     s.name = "TetrahedronSetTopologyContainer";
-    s.aliases = {"TetrahedronSetTopology", "MeshTopology"};
+    s.aliases = {"TetrahedronSetTopology"};
     s.category = "topology";
     s.doc = "Holds tetrahedra: from a loader (`src`), explicit lists, or a topological mapping writing to it.";
     s.add(AttrSpec::link("src").help("a loader to take points and tetrahedra from"));
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
     s.add(AttrSpec::ints("tetrahedra").multipleOf(4).atLeast(0).linked().help("node indices, four per tetrahedron"));
     s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "SparseGridTopology";
+    s.aliases = {"SparseGrid"};
+    s.category = "topology";
+    s.doc = "The hexahedra of a regular grid of n nodes over a closed surface's bounding box that the surface crosses "
+            "or encloses (voxelisation: a cell is kept when a triangle meets it or when it is cut off from the grid's "
+            "border by such cells). Nodes are the kept cells' corners, in grid order.";
+    s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
+    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
+    s.factory = [](BuildContext& c) { return std::make_unique<SparseGridTopology>(c); };
+    r.add(std::move(s));
+  }
+  for (const char* name : {"MeshTopology", "HexahedronSetTopologyContainer"}) {
+    const bool hexOnly = std::string(name) == "HexahedronSetTopologyContainer";
+    ComponentSpec s;
+    s.name = name;
+    s.aliases = {hexOnly ? "HexahedronSetTopology" : "Mesh"};
+    s.category = "topology";
+    s.doc = hexOnly ? "Holds hexahedra: from a grid or loader (`src`), or explicit lists."
+                    : "Holds any of a mesh's points, triangles, quads, tetrahedra and hexahedra: from a mesh or surface file "
+                      "(`filename`), a loader or grid (`src`), or explicit lists (given lists replace what `src` gives).";
+    s.add(AttrSpec::link("src").help("a loader or topology to take points and elements from"));
+    if (!hexOnly) s.add(AttrSpec::file("filename").help("a mesh (.msh, .vtk, .vtu) or surface (.obj, .stl, .off, .ply) file"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
+    if (!hexOnly) {
+      s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("node indices, three per triangle"));
+      s.add(AttrSpec::ints("quads").multipleOf(4).atLeast(0).linked().help("node indices, four per quad"));
+      s.add(AttrSpec::ints("tetrahedra").multipleOf(4).atLeast(0).linked().help("node indices, four per tetrahedron"));
+    }
+    s.add(AttrSpec::ints("hexahedra").multipleOf(8).atLeast(0).linked().help("node indices, eight per hexahedron (SOFA's order)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<GeneralMeshTopology>(c); };
     r.add(std::move(s));
   }
   {

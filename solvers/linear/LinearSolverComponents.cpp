@@ -1,5 +1,7 @@
 // Scene components for the linear solvers: CGLinearSolver, PCGLinearSolver with its preconditioners,
 // and SparseLDLSolver.
+#include <memory>
+
 #include "core/Component.h"
 #include "core/Registry.h"
 #include "solvers/linear/LinearSolver.h"
@@ -104,31 +106,48 @@ class PCGLinearSolver : public Component, public LinearSolver {
   using Component::Component;
   void init() override {
     if (attrs_.boolean("use_precond") && attrs_.isSet("preconditioner")) {
-      preconditioner_ = dynamic_cast<PreconditionerComponent*>(linkedComponent("preconditioner"));
-      if (!preconditioner_)
-        throw error("preconditioner", "does not link to a preconditioner (JacobiPreconditioner, BlockJacobiPreconditioner "
-                                      "or SSORPreconditioner)");
+      Component* c = linkedComponent("preconditioner");
+      preconditioner_ = dynamic_cast<PreconditionerComponent*>(c);
+      // A direct solver as preconditioner (SOFA's AsyncSparseLDLSolver): the factorised matrix itself.
+      direct_ = !preconditioner_ && dynamic_cast<LinearSolver*>(c) && dynamic_cast<LinearSolver*>(c)->needsMatrix() &&
+                c->typeName() != "PCGLinearSolver";
+      if (!preconditioner_ && !direct_)
+        throw error("preconditioner", "does not link to a preconditioner (JacobiPreconditioner, BlockJacobiPreconditioner, "
+                                      "SSORPreconditioner or a direct solver such as SparseLDLSolver)");
     }
     updateStep_ = static_cast<int>(attrs_.integer("update_step"));
   }
-  bool needsMatrix() const override { return preconditioner_ != nullptr; }
+  bool needsMatrix() const override { return preconditioner_ != nullptr || direct_; }
   LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
-    if (preconditioner_) {
+    if (preconditioner_ || direct_) {
+      LinearSolveInfo info;
       if (!p.matrix) {
-        LinearSolveInfo info;
         info.ok = false;
         info.message = "PCGLinearSolver's preconditioner needs an assembled matrix";
         return info;
       }
       // SOFA rebuilds the preconditioner every update_step solves and keeps it in between.
-      if (solves_++ % updateStep_ == 0 || !precondition_) precondition_ = preconditioner_->build(*p.matrix);
+      if (solves_++ % updateStep_ == 0 || !precondition_) {
+        if (preconditioner_) {
+          precondition_ = preconditioner_->build(*p.matrix);
+        } else {
+          auto chol = std::make_shared<CholmodSolver>();
+          if (!chol->factorize(*p.matrix, info.message)) {
+            info.ok = false;
+            info.message = "PCGLinearSolver's direct preconditioner: " + info.message;
+            return info;
+          }
+          precondition_ = [chol](const Eigen::VectorXd& r, Eigen::VectorXd& z) { chol->solve(r, z); };
+        }
+      }
     }
     return preconditionedConjugateGradient(p, b, x, static_cast<int>(attrs_.integer("iterations")), attrs_.real("tolerance"),
-                                           preconditioner_ ? &precondition_ : nullptr);
+                                           precondition_ ? &precondition_ : nullptr);
   }
 
  private:
   PreconditionerComponent* preconditioner_ = nullptr;
+  bool direct_ = false;  // the preconditioner is a direct solver: the factorised matrix
   Preconditioner precondition_;
   int updateStep_ = 1;
   long solves_ = 0;
@@ -145,7 +164,8 @@ void registerLinearSolvers(Registry& r) {
     s.doc = "Preconditioned conjugate gradient, as SOFA's: starts from the previous step's solution and stops after "
             "`iterations` or when r^T M^-1 r <= tolerance b^T b (without a preconditioner the squared relative "
             "residual, so tolerance 1e-5 is a residual of about 3e-3). The preconditioner M is a linked "
-            "JacobiPreconditioner, BlockJacobiPreconditioner or SSORPreconditioner, rebuilt every update_step steps.";
+            "JacobiPreconditioner, BlockJacobiPreconditioner or SSORPreconditioner, or a direct solver (the factorised "
+            "matrix, as SOFA's AsyncSparseLDLSolver there), rebuilt every update_step steps.";
     s.add(AttrSpec::integer("iterations").def("25").atLeast(1).help("maximum number of iterations"));
     s.add(AttrSpec::real("tolerance").def("1e-5").atLeast(0).help("stop when r^T M^-1 r <= tolerance b^T b"));
     s.add(AttrSpec::boolean("use_precond").def("true").help("apply the preconditioner (false: plain conjugate gradient)"));

@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <array>
+#include <cmath>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include "builtin/Builtins.h"
@@ -400,4 +403,101 @@ TEST(SofaSceneForms, SpheresOnTwoBodiesStopTheRunWhenTheyTouch) {
   const auto failed = touch.step();
   ASSERT_TRUE(failed);
   EXPECT_NE(failed->reason.find("spheres of 'a_spheres' and 'b_spheres' touch"), std::string::npos) << failed->reason;
+}
+
+// MeshTopology holds whatever a mesh has: from a surface file its points and triangles (a collision
+// surface can come from it), from explicit lists hexahedra as well (a grid-like body).
+TEST(SofaSceneForms, MeshTopologyHoldsTrianglesQuadsAndHexahedra) {
+  TempDir dir;
+  write(dir / "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+  write(dir / "scene.scn", R"(<Node name="root">
+  <MeshTopology name="surface" filename="tri.obj"/>
+  <MechanicalObject name="dofs" src="@surface"/>
+  <Node name="cube">
+    <MeshTopology name="hexa" position="0 0 0 1 0 0 1 1 0 0 1 0 0 0 1 1 0 1 1 1 1 0 1 1" hexahedra="0 1 2 3 4 5 6 7"/>
+    <MechanicalObject name="cubeDofs"/>
+    <UniformMass totalMass="8"/>
+    <HexahedronFEMForceField youngModulus="100" poissonRatio="0.3"/>
+  </Node>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  EXPECT_EQ(object(*scene, "dofs").size(), 4);
+  EXPECT_EQ(object(*scene, "cubeDofs").size(), 8);
+  FieldValue tris;
+  const Component* surface = nullptr;
+  for (const auto& c : scene->root().components())
+    if (c->name() == "surface") surface = c.get();
+  ASSERT_TRUE(surface && surface->field("triangles", tris));
+  EXPECT_EQ(tris.values.size(), 12u);
+  // An index past the points is an error naming the attribute.
+  write(dir / "scene.scn", R"(<Node name="root"><MeshTopology position="0 0 0 1 0 0 0 1 0" triangles="0 1 3"/></Node>)");
+  const std::string e = errorOf([&] { buildScene(io::readScene(dir / "scene.scn"))->init(); });
+  EXPECT_NE(e.find("MeshTopology.triangles"), std::string::npos) << e;
+  EXPECT_NE(e.find("refers to node 3, but there are 3 points"), std::string::npos) << e;
+}
+
+// On a grid, points are located in the grid's own geometry, before the MechanicalObject's placement
+// (as SOFA's grid mapper): a body moved by translation carries a surface written at the grid.
+TEST(SofaSceneForms, GridMappingLocatesPointsBeforeThePlacement) {
+  TempDir dir;
+  write(dir / "scene.scn", R"(<Node name="root" gravity="0 0 0">
+  <Node name="body">
+    <EulerImplicitSolver/><CGLinearSolver/>
+    <MechanicalObject name="dofs" translation="10 0 0"/>
+    <UniformMass totalMass="1"/>
+    <RegularGridTopology n="2 2 2" min="0 0 0" max="1 1 1"/>
+    <Node name="mapped">
+      <MechanicalObject name="points" position="0.5 0.25 0.75"/>
+      <BarycentricMapping/>
+    </Node>
+  </Node>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  Simulation sim(*scene);
+  ASSERT_FALSE(sim.step());
+  EXPECT_LT((object(*scene, "points").x.col(0) - Eigen::Vector3d(10.5, 0.25, 0.75)).norm(), 1e-12);
+}
+
+// SparseGridTopology keeps the grid cells a closed surface meets or encloses. For the octahedron
+// |x| + |y| + |z| <= 3 on a 7 x 7 x 7 node grid (unit cells over [-3, 3]^3), a cell meets the solid
+// iff the L1 norm of its point nearest the centre is at most 3: every cell below that is kept
+// (the ones the surface crosses and the enclosed ones), none above; cells whose nearest point lies
+// exactly on the surface touch it and may go either way.
+TEST(SofaSceneForms, SparseGridKeepsTheCellsASurfaceMeetsOrEncloses) {
+  TempDir dir;
+  write(dir / "octa.obj", "v 3 0 0\nv -3 0 0\nv 0 3 0\nv 0 -3 0\nv 0 0 3\nv 0 0 -3\n"
+                          "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
+  write(dir / "scene.scn", R"(<Node name="root">
+  <SparseGridTopology name="grid" n="7 7 7" fileTopology="octa.obj"/>
+  <MechanicalObject name="dofs"/>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  const Topology* grid = scene->all<Topology>().front();
+  const MechanicalObject& dofs = object(*scene, "dofs");
+  ASSERT_EQ(dofs.size(), grid->points().cols());
+  auto nearestL1 = [](const Eigen::Vector3d& lo) {
+    double s = 0;
+    for (int a = 0; a < 3; ++a) s += lo[a] >= 0 ? lo[a] : (lo[a] + 1 <= 0 ? -(lo[a] + 1) : 0.0);
+    return s;
+  };
+  std::set<std::array<int, 3>> kept;
+  for (const auto& h : grid->hexahedra()) {
+    const Eigen::Vector3d lo = grid->points().col(h[0]);
+    EXPECT_LE(nearestL1(lo), 3.0 + 1e-9) << lo.transpose();
+    EXPECT_DOUBLE_EQ((grid->points().col(h[6]) - lo).norm(), std::sqrt(3.0));  // a unit cell, corners in order
+    kept.insert({static_cast<int>(std::lround(lo.x())), static_cast<int>(std::lround(lo.y())), static_cast<int>(std::lround(lo.z()))});
+  }
+  int inside = 0;
+  for (int i = -3; i < 3; ++i)
+    for (int j = -3; j < 3; ++j)
+      for (int k = -3; k < 3; ++k)
+        if (nearestL1(Eigen::Vector3d(i, j, k)) < 3 - 1e-9) {
+          ++inside;
+          EXPECT_TRUE(kept.count({i, j, k})) << i << " " << j << " " << k;
+        }
+  EXPECT_EQ(inside, 80);
+  EXPECT_GE(grid->hexahedra().size(), 80u);
+  EXPECT_LE(grid->hexahedra().size(), 136u);
 }
