@@ -55,6 +55,9 @@ class ForceField {
   // approximation, as the corotational FEM's R^T K0 R is; Newton solvers ask for it. Fields whose
   // stiffness is exact already have nothing to change.
   virtual void setExactTangent(bool on) {}
+  // True for a field that reads a mapped state's positions but acts on the mapping's input (a
+  // collision surface on a mapped state): allowed beside a mapped state.
+  virtual bool actsThroughMapping() const { return false; }
 };
 
 // Mass; also applies gravity. `nodeMass` is the lumped mass (each row of M summed), which is all
@@ -139,6 +142,10 @@ class Mapping {
  public:
   virtual ~Mapping() = default;
   virtual void apply() = 0;
+  // For mappings linear in their input: the input state, and output point p as a weighted sum of
+  // its nodes (what carries forces on the output back to the input). Null / false otherwise.
+  virtual MechanicalObject* inputState() const { return nullptr; }
+  virtual bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const { return false; }
 };
 
 // Reads the state at the end of a step (exporters, recorders, metrics).

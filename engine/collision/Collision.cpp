@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 #include <cstdlib>
@@ -101,16 +102,43 @@ SurfaceTopology surfaceTopology(const io::TriangleList& boundary, const Eigen::M
 
 }  // namespace
 
+const Eigen::Matrix3Xd& SurfaceCollisionModel::surfacePositions() const { return surfaceState_->x; }
+
+Eigen::Vector3d SurfaceCollisionModel::vertexPosition(int v) const {
+  if (vertexMap_.empty()) return state_->x.col(v);
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  for (const auto& [n, w] : vertexMap_[v]) p += w * state_->x.col(n);
+  return p;
+}
+
 void SurfaceCollisionModel::init() {
   const std::string& t = typeName();
   kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
   if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
-  state_ = &contextState(*this);
+  surfaceState_ = state_ = &contextState(*this);
   stiffness_ = attrs_.real("contactStiffness");
+  // A surface on a mapped state (SOFA's collision node under a body) acts on the mapping's input:
+  // each surface vertex is a weighted sum of the body's nodes, and so is each contact.
+  for (const auto& c : surfaceState_->node().components())
+    if (dynamic_cast<Mapping*>(c.get())) scene().initComponent(*c);
+  if (const Component* by = surfaceState_->mappedBy()) {
+    const auto* m = dynamic_cast<const Mapping*>(by);
+    if (!m || !m->inputState())
+      throw error("its MechanicalObject '" + surfaceState_->name() + "' is mapped by " + by->typeName() +
+                  ", which does not carry forces back to a body");
+    state_ = m->inputState();
+    vertexMap_.resize(surfaceState_->size());
+    for (int v = 0; v < surfaceState_->size(); ++v) {
+      if (!m->pointWeights(v, vertexMap_[v]))
+        throw error("its MechanicalObject '" + surfaceState_->name() + "' is mapped by " + by->typeName() +
+                    ", which does not give point " + std::to_string(v) + " as a weighted sum of the body's nodes");
+      if (vertexMap_[v].size() > 8) throw error("a surface vertex depends on more than 8 nodes of the body");
+    }
+  }
   // The surface: from the `topology` link or the nearest node with a topology, the boundary of its
   // tetrahedra, else of its hexahedra (a grid), else its own triangles (a TriangleSetTopologyContainer,
   // e.g. filled by Tetra2TriangleTopologicalMapping, or a surface loader).
-  const Eigen::Matrix3Xd& X = state_->x0;
+  const Eigen::Matrix3Xd& X = surfaceState_->x0;
   io::TriangleList boundary;
   Component& source = surfaceSource();
   const Topology& topo = dynamic_cast<const Topology&>(source);
@@ -143,6 +171,9 @@ void SurfaceCollisionModel::init() {
   tris_ = surface->tris;
   verts_ = surface->verts;
   edges_ = surface->edges;
+  meanEdge_ = 0;
+  for (const auto& e : edges_) meanEdge_ += (X.col(e[1]) - X.col(e[0])).norm();
+  if (!edges_.empty()) meanEdge_ /= static_cast<double>(edges_.size());
   triEdges_ = surface->triEdges;
   edgeTris_ = surface->edgeTris;
   vertexNeighbours_ = surface->vertexNeighbours;
@@ -206,6 +237,22 @@ void SurfaceCollisionModel::fitBoxes(const Eigen::Matrix3Xd& x) {
   }
 }
 
+double SurfaceCollisionModel::distanceTo(const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const {
+  double best = std::numeric_limits<double>::infinity();
+  const geom::AabbTree::Box query(p - Eigen::Vector3d::Constant(within), p + Eigen::Vector3d::Constant(within));
+  bvh_->tree.query(query, [&](int i) {
+    double d;
+    if (kind_ == Kind::Points) {
+      d = (x.col(verts_[i]) - p).norm();
+    } else {
+      const auto& t = tris_[i];
+      d = (geom::closestOnTriangle(p, x.col(t[0]), x.col(t[1]), x.col(t[2])).point - p).norm();
+    }
+    best = std::min(best, d);
+  });
+  return best < within ? best : std::numeric_limits<double>::infinity();
+}
+
 void SurfaceCollisionModel::refit(const Eigen::Matrix3Xd& x) {
   fitBoxes(x);
   bvh_->tree.refit(bvh_->boxes);
@@ -225,9 +272,17 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
     ct.surface = this;
     ct.feature = f;
     for (auto [node, w] : nw) {
-      ct.nodes[ct.count] = node;
-      ct.w[ct.count] = w;
-      ++ct.count;
+      if (vertexMap_.empty()) {
+        ct.nodes[ct.count] = node;
+        ct.w[ct.count] = w;
+        ++ct.count;
+        continue;
+      }
+      for (auto [bodyNode, bw] : vertexMap_[node]) {  // a mapped vertex: the body's nodes it follows
+        ct.nodes[ct.count] = bodyNode;
+        ct.w[ct.count] = w * bw;
+        ++ct.count;
+      }
     }
     ct.n = nrm;
     ct.p0 = q;
@@ -322,8 +377,8 @@ void SurfaceCollisionModel::saveState(StateWriter& out) const {
     out.put(static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()));
     out.put(c.feature);
     out.put(c.count);
-    for (int k = 0; k < 3; ++k) out.put(c.nodes[k]);
-    for (int k = 0; k < 3; ++k) out.put(c.w[k]);
+    for (int k = 0; k < c.count; ++k) out.put(c.nodes[k]);
+    for (int k = 0; k < c.count; ++k) out.put(c.w[k]);
     out.put(c.n);
     out.put(c.p0);
     out.put(c.gap0);
@@ -348,9 +403,9 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
     c.surface = this;
     in.get(c.feature);
     in.get(c.count);
-    for (int k = 0; k < 3; ++k) in.get(c.nodes[k]);
-    for (int k = 0; k < 3; ++k) in.get(c.w[k]);
-    if (c.count < 1 || c.count > 3) in.mismatch("a contact with " + std::to_string(c.count) + " nodes");
+    if (c.count < 1 || c.count > kMaxContactNodes) in.mismatch("a contact with " + std::to_string(c.count) + " nodes");
+    for (int k = 0; k < c.count; ++k) in.get(c.nodes[k]);
+    for (int k = 0; k < c.count; ++k) in.get(c.w[k]);
     for (int k = 0; k < c.count; ++k)
       if (c.nodes[k] < 0 || c.nodes[k] >= nodes) in.mismatch("a contact on node " + std::to_string(c.nodes[k]));
     in.get(c.n);
@@ -395,8 +450,26 @@ void SurfaceCollisionModel::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3
 }
 
 void SurfaceCollisionModel::stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {
-  // Contacts couple at most the nodes of one boundary triangle; those pairs are fixed.
-  for (const auto& e : edges_) pairs.emplace_back(e[0], e[1]);
+  // Contacts couple at most the nodes of one boundary triangle; those pairs are fixed. On a mapped
+  // surface, the body's nodes its vertices follow.
+  if (vertexMap_.empty()) {
+    for (const auto& e : edges_) pairs.emplace_back(e[0], e[1]);
+    return;
+  }
+  std::set<std::pair<int, int>> unique;
+  for (const auto& t : tris_) {
+    std::vector<int> nodes;
+    for (int v : t)
+      for (const auto& [n, w] : vertexMap_[v]) nodes.push_back(n);
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (size_t b = a + 1; b < nodes.size(); ++b)
+        if (nodes[a] != nodes[b]) unique.insert({std::min(nodes[a], nodes[b]), std::max(nodes[a], nodes[b])});
+  }
+  for (const auto& p : verts_)
+    for (const auto& [a, wa] : vertexMap_[p])
+      for (const auto& [b, wb] : vertexMap_[p])
+        if (a < b) unique.insert({a, b});
+  pairs.insert(pairs.end(), unique.begin(), unique.end());
 }
 
 void SurfaceCollisionModel::addStiffness(BlockSparseMatrix& K, double kFactor) const {
@@ -485,11 +558,11 @@ void CollisionPipeline::init() {
   for (SurfaceCollisionModel* s : scene().all<SurfaceCollisionModel>()) {
     scene().initComponent(*s);
     surfaces_.push_back(s);
-    auto [it, fresh] = best.try_emplace(&s->mstate(), s);
+    auto [it, fresh] = best.try_emplace(&s->surfaceState(), s);
     if (!fresh && s->kind() > it->second->kind()) it->second = s;
   }
   for (SurfaceCollisionModel* s : surfaces_) {
-    SurfaceCollisionModel* b = best[&s->mstate()];
+    SurfaceCollisionModel* b = best[&s->surfaceState()];
     s->setActive(s == b);
     if (s != b)
       scene().addNote(s->loc().str() + ": note: " + s->typeName() + " '" + s->name() + "' is covered by " + b->typeName() +
@@ -554,10 +627,33 @@ std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
     std::vector<Contact> found;
     // Broad phase: the hierarchy follows the surface once per step; each sphere then visits only
     // the triangles its inflated box touches.
-    s->refit(s->mstate().x);
-    for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->mstate().x, settings_, found);
+    s->refit(s->surfacePositions());
+    for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->surfacePositions(), settings_, found);
     s->setContacts(std::move(found), settings_);
   }
+  // Surfaces of two bodies must stay apart: contact between deformable (or fixed) bodies is not
+  // handled, so a vertex coming within the alarm distance of another body's surface (at least a
+  // twentieth of the surface's mean edge) fails the step instead of passing through unseen.
+  for (SurfaceCollisionModel* a : surfaces_)
+    for (SurfaceCollisionModel* b : surfaces_) {
+      if (a == b || !a->active() || !b->active() || &a->mstate() == &b->mstate()) continue;
+      const double margin =
+          std::max({settings_.alarmDistance, settings_.contactDistance, 0.05 * std::max(a->meanEdgeLength(), b->meanEdgeLength())});
+      const Eigen::Matrix3Xd& xa = a->surfacePositions();
+      for (int v : a->vertices()) {
+        const double d = b->distanceTo(xa.col(v), margin, b->surfacePositions());
+        if (d < margin) {
+          Diverged bad;
+          bad.step = stepIndex;
+          bad.time = t;
+          bad.reason = "the surfaces of '" + a->name() + "' (" + a->node().path() + ") and '" + b->name() + "' (" +
+                       b->node().path() + ") touch: contact between two bodies is not handled (only instruments' spheres "
+                       "against surfaces)";
+          bad.object = a->mstate().name();
+          return bad;
+        }
+      }
+    }
   return std::nullopt;
 }
 
@@ -586,11 +682,10 @@ void CollisionPipeline::finish() {
   // Penetration of the vertices into the spheres (not the contact distance: the sphere itself).
   lastPenetration_ = -1e300;
   for (SurfaceCollisionModel* s : surfaces_) {
-    const Eigen::Matrix3Xd& x = s->mstate().x;
     for (SphereCollisionModel* sp : spheres_) {
       const Eigen::Vector3d c = sp->centre();
       const double R = sp->radius();
-      for (int v : s->vertices()) lastPenetration_ = std::max(lastPenetration_, R - (x.col(v) - c).norm());
+      for (int v : s->vertices()) lastPenetration_ = std::max(lastPenetration_, R - (s->vertexPosition(v) - c).norm());
     }
   }
   maxPenetration_ = std::max(maxPenetration_, lastPenetration_);

@@ -30,13 +30,17 @@ class SurfaceCollisionModel;
 
 enum class Feature { Face, Edge, Vertex };
 
+// Nodes a contact spreads over: a triangle's 3 vertices, each (on a mapped surface) a weighted
+// sum of up to 8 nodes of the body (a grid cell).
+constexpr int kMaxContactNodes = 24;
+
 struct Contact {
   SphereCollisionModel* sphere = nullptr;
   SurfaceCollisionModel* surface = nullptr;
   Feature feature = Feature::Face;
-  int count = 0;                    // nodes used: 3 (face), 2 (edge), 1 (vertex)
-  std::array<int, 3> nodes{};       // tissue nodes
-  std::array<double, 3> w{};        // barycentric weights (sum 1)
+  int count = 0;                    // nodes used: 3 (face), 2 (edge), 1 (vertex); more through a mapping
+  std::array<int, kMaxContactNodes> nodes{};   // nodes of the body the force acts on
+  std::array<double, kMaxContactNodes> w{};    // their weights (sum 1)
   Eigen::Vector3d n = Eigen::Vector3d::Zero();   // unit normal, from the tissue towards the sphere centre
   Eigen::Vector3d p0 = Eigen::Vector3d::Zero();  // tissue point at detection
   double gap0 = 0;                  // gap at detection (tissue at the step start, sphere at the step end)
@@ -106,7 +110,15 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void loadState(StateReader& in) override;
 
   Kind kind() const { return kind_; }
+  // The body the contact forces act on: the node's MechanicalObject, or, when that is a mapped
+  // state (SOFA's collision node under a body), the mapping's input.
   MechanicalObject& mstate() const override { return *state_; }
+  // Where the surface is: the node's MechanicalObject (mapped or not).
+  const Eigen::Matrix3Xd& surfacePositions() const;
+  const MechanicalObject& surfaceState() const { return *surfaceState_; }
+  // Surface vertex v where the body's nodes are now (through the mapping when there is one).
+  Eigen::Vector3d vertexPosition(int v) const;
+  bool actsThroughMapping() const override { return true; }
   const std::vector<std::array<int, 3>>& triangles() const { return tris_; }  // outward (right-hand rule)
   const std::vector<int>& vertices() const { return verts_; }
   // SOFA's contactStiffness factor of the model (10 unless given).
@@ -115,6 +127,11 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   bool active() const { return active_; }
   void setActive(bool a) { active_ = a; }
 
+  // The smallest distance from p to the surface's triangles (or vertices, for a point model) at
+  // positions x as last fitted, if below `within`; +infinity otherwise.
+  double distanceTo(const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const;
+  // Mean length of the surface's edges at rest.
+  double meanEdgeLength() const { return meanEdge_; }
   // Fits the bounding-volume hierarchy to positions x; call before detect() when x changed.
   void refit(const Eigen::Matrix3Xd& x);
   // Contacts with `sphere` for the positions x (the tissue at the step start), as fitted.
@@ -141,13 +158,17 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // Where the surface comes from: the `topology` link, else the nearest node's topology.
   Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
-  MechanicalObject* state_ = nullptr;
+  MechanicalObject* state_ = nullptr;         // receives the forces
+  MechanicalObject* surfaceState_ = nullptr;  // carries the surface
+  // Per surface vertex, the body's nodes and weights it is mapped from (empty: the same nodes).
+  std::vector<std::vector<std::pair<int, double>>> vertexMap_;
   Kind kind_ = Kind::Triangles;
   bool active_ = true;
   double stiffness_ = 0;
   std::vector<std::array<int, 3>> tris_;
   std::vector<int> verts_;
   std::vector<std::array<int, 2>> edges_;          // surface edges (a < b)
+  double meanEdge_ = 0;
   std::vector<std::array<int, 3>> triEdges_;       // per triangle: edge ids of (v0v1, v1v2, v2v0)
   std::vector<std::vector<int>> edgeTris_;         // per edge: adjacent triangles
   std::vector<std::vector<int>> vertexNeighbours_; // per node: surface neighbours (empty off the surface)

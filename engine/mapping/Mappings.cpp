@@ -84,6 +84,8 @@ class PointMapping : public Component, public Mapping {
     input_ = &inputState();
     output_ = outputPoints();
   }
+  MechanicalObject* inputState() const override { return input_; }
+
   // Writes map(input positions) and, for a MechanicalObject, map(input velocities).
   template <class Map>
   void write(const Map& map) {
@@ -243,6 +245,17 @@ class BarycentricMapping : public PointMapping {
     if (hexa_) write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(hexEmbedding_, in, out); });
     else write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
   }
+  bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const override {
+    out.clear();
+    if (hexa_) {
+      if (p < 0 || p >= hexEmbedding_.size()) return false;
+      for (int k = 0; k < 8; ++k) out.push_back({hexEmbedding_.nodes(k, p), hexEmbedding_.weights(k, p)});
+    } else {
+      if (p < 0 || p >= embedding_.size() || embedding_.element[p] < 0) return false;
+      for (int k = 0; k < 4; ++k) out.push_back({embedding_.nodes(k, p), embedding_.weights(k, p)});
+    }
+    return true;
+  }
 
  private:
   static int maxNodeOf(const HexList& hexa) {
@@ -278,6 +291,10 @@ class IdentityMapping : public PointMapping {
 
   void apply() override {
     write([](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { out = in; });
+  }
+  bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const override {
+    out.assign(1, {p, 1.0});
+    return p >= 0 && p < input_->size();
   }
 };
 

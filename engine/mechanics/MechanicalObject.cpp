@@ -82,8 +82,8 @@ void MechanicalObject::setMappedBy(const Component& mapping) {
                                       " '" + mappedBy_->name() + "'; give each mapped state one mapping");
   // Forces on a mapped state are not carried back to its input here: refuse what would be ignored.
   for (const auto& c : node().components())
-    if (dynamic_cast<const ForceField*>(c.get()) || dynamic_cast<const Mass*>(c.get()) ||
-        dynamic_cast<const ProjectiveConstraint*>(c.get()))
+    if (const auto* f = dynamic_cast<const ForceField*>(c.get()); (f && !f->actsThroughMapping()) ||
+        dynamic_cast<const Mass*>(c.get()) || dynamic_cast<const ProjectiveConstraint*>(c.get()))
       throw mapping.error("output", "MechanicalObject '" + name() + "' is mapped, but the " + c->typeName() + " '" +
                                         c->name() + "' in its node acts on it; forces and constraints on a mapped state "
                                         "are not carried back to the input (put them on the input's node)");

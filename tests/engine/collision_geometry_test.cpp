@@ -405,7 +405,8 @@ TEST(CollisionDetection, SphereAboveAFaceInterior) {
       ASSERT_EQ(cs.size(), 1u) << "h = " << h;
       const Contact& ct = cs[0];
       EXPECT_EQ(ct.feature, Feature::Face);
-      EXPECT_EQ(ct.nodes, t);
+      ASSERT_EQ(ct.count, 3);
+      EXPECT_EQ((std::array<int, 3>{ct.nodes[0], ct.nodes[1], ct.nodes[2]}), t);
       EXPECT_NEAR(ct.w[0], 0.5, 1e-14);
       EXPECT_NEAR(ct.w[1], 0.3, 1e-14);
       EXPECT_NEAR(ct.w[2], 0.2, 1e-14);

@@ -501,3 +501,78 @@ TEST(SofaSceneForms, SparseGridKeepsTheCellsASurfaceMeetsOrEncloses) {
   EXPECT_GE(grid->hexahedra().size(), 80u);
   EXPECT_LE(grid->hexahedra().size(), 136u);
 }
+
+// SOFA's collision node under a body: a TriangleCollisionModel on a mapped MechanicalObject acts on
+// the body through the mapping. With the mapped points at the body's own nodes (IdentityMapping)
+// the run equals the one with the model on the body itself, to round-off.
+TEST(SofaSceneForms, ACollisionSurfaceOnAMappedStateActsOnTheBody) {
+  auto sceneWith = [](const std::string& surface) {
+    return R"(<Node name="root" dt="0.05" gravity="0 0 0">
+  <CollisionPipeline/><MinProximityIntersection alarmDistance="0.3" contactDistance="0.05"/>
+  <CollisionResponse response="PenalityContactForceField"/>
+  <Node name="instrument">
+    <MechanicalObject name="tool" template="Rigid3d" position="1 1 1.6 0 0 0 1"/>
+    <LinearMovementConstraint keyTimes="0 1" movements="0 0 0 0 0 0  0 0 -0.5 0 0 0"/>
+    <SphereCollisionModel radius="0.5"/>
+  </Node>
+  <Node name="body">
+    <EulerImplicitSolver/><SparseLDLSolver/>
+    <RegularGridTopology name="grid" n="3 3 2" min="0 0 0" max="2 2 1"/>
+    <TetrahedronSetTopologyContainer name="tets"/>
+    <Hexa2TetraTopologicalMapping input="@grid" output="@tets"/>
+    <MechanicalObject name="dofs"/>
+    <UniformMass totalMass="1"/>
+    <TetrahedronFEMForceField youngModulus="100" poissonRatio="0.3"/>
+    <BoxROI name="bottom" box="-1 -1 -1 3 3 0.1"/><FixedConstraint indices="@bottom.indices"/>
+    )" + surface + R"(
+  </Node>
+</Node>)";
+  };
+  auto run = [&](const std::string& surface) {
+    auto scene = buildScene(io::parseSceneText(sceneWith(surface), "mapped_surface.xml"));
+    Simulation sim(*scene);
+    for (int i = 0; i < 20; ++i) EXPECT_FALSE(sim.step());
+    return object(*scene, "dofs").x;
+  };
+  const Eigen::Matrix3Xd direct = run(R"(<TriangleCollisionModel contactStiffness="100"/>)");
+  const Eigen::Matrix3Xd mapped = run(R"(<Node name="surf"><MechanicalObject name="surfDofs" src="@../grid"/>
+      <TriangleCollisionModel contactStiffness="100"/><IdentityMapping input="@../dofs" output="@surfDofs"/></Node>)");
+  const Eigen::Matrix3Xd x0 = [&] {
+    auto s = buildScene(io::parseSceneText(sceneWith(""), "rest.xml"));
+    s->init();
+    return object(*s, "dofs").x0;
+  }();
+  EXPECT_GT((direct - x0).norm(), 1e-3);  // the sphere pressed the body
+  EXPECT_LT((mapped - direct).norm(), 1e-9 * (direct - x0).norm());
+}
+
+// Surfaces of two bodies are accepted while apart; when one comes within the alarm distance of
+// the other, the step fails and names both (contact between two bodies is not handled).
+TEST(SofaSceneForms, SurfacesOfTwoBodiesStopTheRunWhenTheyTouch) {
+  auto block = [](const std::string& name, double x, double vx) {
+    return "<Node name=\"" + name + "\"><EulerImplicitSolver/><SparseLDLSolver/>"
+           "<RegularGridTopology name=\"grid\" n=\"2 2 2\" min=\"" + std::to_string(x) + " 0 0\" max=\"" + std::to_string(x + 1) + " 1 1\"/>"
+           "<TetrahedronSetTopologyContainer name=\"tets\"/><Hexa2TetraTopologicalMapping input=\"@grid\" output=\"@tets\"/>"
+           "<MechanicalObject name=\"" + name + "_dofs\" velocity=\"" + std::to_string(vx) + " 0 0\"/><UniformMass totalMass=\"1\"/>"
+           "<TetrahedronFEMForceField youngModulus=\"100\" poissonRatio=\"0.3\"/>"
+           "<TriangleCollisionModel name=\"" + name + "_surface\"/></Node>";
+  };
+  const std::string text = "<Node name=\"root\" dt=\"0.01\" gravity=\"0 0 0\"><CollisionPipeline/>"
+                           "<MinProximityIntersection alarmDistance=\"0.1\" contactDistance=\"0.05\"/>" +
+                           block("left", 0, 1) + block("right", 2, 0) + "</Node>";
+  auto scene = buildScene(io::parseSceneText(text, "two_blocks.xml"));
+  Simulation sim(*scene);
+  int failedAt = -1;
+  std::string reason;
+  for (int i = 1; i <= 200 && failedAt < 0; ++i)
+    if (auto bad = sim.step()) {
+      failedAt = i;
+      reason = bad->reason;
+    }
+  // The left block moves at 1 per second towards the right one, 1 away: it comes within 0.1 after
+  // about 0.9 s (90 steps), and not before.
+  EXPECT_GE(failedAt, 85);
+  EXPECT_LE(failedAt, 95);
+  EXPECT_NE(reason.find("the surfaces of 'left_surface'"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("contact between two bodies is not handled"), std::string::npos) << reason;
+}
