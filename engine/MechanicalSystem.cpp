@@ -1,6 +1,9 @@
 #include <Eigen/Dense>
 #include "engine/MechanicalSystem.h"
 
+#include <Eigen/Eigenvalues>
+#include <map>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -34,6 +37,7 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
   mass_ = Eigen::VectorXd::Zero(n);
   diagonalMass_ = Eigen::VectorXd::Zero(n);
   bool hasMass = false;
+  std::map<int, std::vector<Eigen::Vector3d>> held;
   std::vector<Component*> comps;
   node.collect(comps);
   for (Component* c : comps) {
@@ -47,12 +51,34 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
       hasMass = true;
     }
     if (auto* f = dynamic_cast<ForceField*>(c); f && &f->mstate() == state_) forces_.push_back(f);
-    if (auto* p = dynamic_cast<ProjectiveConstraint*>(c); p && &p->mstate() == state_)
+    if (auto* p = dynamic_cast<ProjectiveConstraint*>(c); p && &p->mstate() == state_) {
       fixed_.insert(fixed_.end(), p->fixedNodes().begin(), p->fixedNodes().end());
+      for (const auto& [node, dir] : p->heldDirections()) held[node].push_back(dir);
+    }
+  }
+  // Partly held nodes: the span of their held directions is removed from their motion; three
+  // independent directions fix the node.
+  for (const auto& [node, dirs] : held) {
+    Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
+    for (const auto& d : dirs) N += d * d.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(N);
+    Eigen::Matrix3d P = Eigen::Matrix3d::Identity();
+    int rank = 0;
+    for (int k = 0; k < 3; ++k)
+      if (eig.eigenvalues()[k] > 1e-9) {
+        P -= eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose();
+        ++rank;
+      }
+    if (rank == 3) fixed_.push_back(node);
+    else partial_.push_back({node, P});
   }
   if (!hasMass) throw owner.error("no mass acts on MechanicalObject '" + state_->name() + "' (add UniformMass, DiagonalMass or MeshMatrixMass)");
   std::sort(fixed_.begin(), fixed_.end());
   fixed_.erase(std::unique(fixed_.begin(), fixed_.end()), fixed_.end());
+  // A fixed node needs no projector.
+  partial_.erase(std::remove_if(partial_.begin(), partial_.end(),
+                                [&](const auto& p) { return std::binary_search(fixed_.begin(), fixed_.end(), p.first); }),
+                 partial_.end());
 }
 
 int MechanicalSystem::nodes() const { return state_->size(); }
@@ -91,6 +117,19 @@ void MechanicalSystem::addMass(BlockSparseMatrix& A, double factor) const {
 
 void MechanicalSystem::project(Eigen::Matrix3Xd& v) const {
   for (int i : fixed_) v.col(i).setZero();
+  for (const auto& [i, P] : partial_) v.col(i) = P * v.col(i);
+}
+
+Eigen::Matrix3d MechanicalSystem::projector(int i) const {
+  if (std::binary_search(fixed_.begin(), fixed_.end(), i)) return Eigen::Matrix3d::Zero();
+  for (const auto& [n, P] : partial_)
+    if (n == i) return P;
+  return Eigen::Matrix3d::Identity();
+}
+
+void MechanicalSystem::constrain(BlockSparseMatrix& A) const {
+  A.constrainNodes(fixed_);
+  A.projectNodes(partial_);
 }
 
 std::optional<Diverged> MechanicalSystem::check(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, int step,

@@ -31,6 +31,13 @@ class MechanicalSystem {
   // A += factor * M, for a matrix whose pattern assembleStiffness built.
   void addMass(BlockSparseMatrix& A, double factor) const;
   const std::vector<int>& fixedNodes() const { return fixed_; }
+  // Nodes held along some directions: the projector onto their remaining freedom (I - sum n n^T).
+  const std::vector<std::pair<int, Eigen::Matrix3d>>& partialNodes() const { return partial_; }
+  // The projector of node i: 0 for a fixed node, its projector for a partly held one, I otherwise.
+  Eigen::Matrix3d projector(int i) const;
+  // Applies the projective constraints to a system matrix: identity rows and columns for fixed
+  // nodes, P A P + (I - P) for partly held ones.
+  void constrain(BlockSparseMatrix& A) const;
   const std::vector<ForceField*>& forceFields() const { return forces_; }
 
   // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x.
@@ -42,7 +49,7 @@ class MechanicalSystem {
   // K_damped + undampedScale K_undamped (as the force fields report it at their last
   // linearisation) into `K`; the pattern is built on first use and kept.
   void assembleStiffness(BlockSparseMatrix& K, double undampedScale = 1.0);
-  // Zeroes the rows of fixed nodes.
+  // Zeroes the rows of fixed nodes and projects those of partly held ones.
   void project(Eigen::Matrix3Xd& v) const;
   // Non-finite values and inverted elements at (x, v), as a failure, or nothing.
   std::optional<Diverged> check(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, int step, double time) const;
@@ -52,6 +59,7 @@ class MechanicalSystem {
   MechanicalObject* state_ = nullptr;
   std::vector<ForceField*> forces_;
   std::vector<int> fixed_;
+  std::vector<std::pair<int, Eigen::Matrix3d>> partial_;
   Eigen::VectorXd mass_;
   Eigen::VectorXd diagonalMass_;      // the sum of the lumped masses
   std::vector<Mass*> consistent_;     // masses with off-diagonal terms

@@ -82,6 +82,11 @@ class ProjectiveConstraint {
   virtual ~ProjectiveConstraint() = default;
   virtual MechanicalObject& mstate() const = 0;
   virtual const std::vector<int>& fixedNodes() const = 0;
+  // Nodes held along one direction only (unit vectors): the motion keeps the rest of its freedom.
+  virtual const std::vector<std::pair<int, Eigen::Vector3d>>& heldDirections() const {
+    static const std::vector<std::pair<int, Eigen::Vector3d>> none;
+    return none;
+  }
 };
 
 // A numerical failure of a step: where, when and what.

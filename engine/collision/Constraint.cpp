@@ -84,9 +84,7 @@ class ConstraintCorrection : public Component {
  private:
   Eigen::Matrix3d uncoupled(int u) const {
     const double m = sys_->nodeMass()[u];
-    for (int f : sys_->fixedNodes())
-      if (f == u) return Eigen::Matrix3d::Zero();
-    return Eigen::Matrix3d::Identity() * (resp_.xFactor / (resp_.mFactor * m));
+    return sys_->projector(u) * (resp_.xFactor / (resp_.mFactor * m));
   }
 
   void factorize(const Eigen::Matrix3Xd& x) {
@@ -96,7 +94,7 @@ class ConstraintCorrection : public Component {
     sys_->assembleStiffness(A_);
     A_.scale(resp_.kFactor);
     if (resp_.mFactor != 0) sys_->addMass(A_, resp_.mFactor);
-    A_.constrainNodes(sys_->fixedNodes());
+    sys_->constrain(A_);
     std::string msg;
     if (!chol_.factorize(A_, msg)) throw error("cannot factorize the body's step matrix for the contact compliance: " + msg);
   }
@@ -109,15 +107,16 @@ class ConstraintCorrection : public Component {
     const int n3 = 3 * sys_->nodes();
     Eigen::MatrixX3d col(n3, 3);
     Eigen::VectorXd e = Eigen::VectorXd::Zero(n3), x;
+    // A unit force on node v, projected as the constraints allow (none on a fixed node).
+    const Eigen::Matrix3d Pv = sys_->projector(v);
     for (int k = 0; k < 3; ++k) {
       e.setZero();
-      bool fixed = false;
-      for (int f : sys_->fixedNodes()) fixed |= f == v;
-      if (!fixed) e[3 * v + k] = 1.0;
+      e.segment<3>(3 * v) = Pv.col(k);
       chol_.solve(e, x);
       col.col(k) = x * resp_.xFactor;
     }
     for (int f : sys_->fixedNodes()) col.middleRows<3>(3 * f).setZero();
+    for (const auto& [i, P] : sys_->partialNodes()) col.middleRows<3>(3 * i) = P * col.middleRows<3>(3 * i);
     return columns_.emplace(v, std::move(col)).first->second;
   }
 

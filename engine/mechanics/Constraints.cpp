@@ -60,6 +60,59 @@ class FixedConstraint : public Component, public ProjectiveConstraint {
   std::vector<int> nodes_;
 };
 
+// Projective constraints that hold nodes along directions only: SOFA's
+// PartialFixedProjectiveConstraint (chosen axes of chosen nodes) and FixedPlaneProjectiveConstraint
+// (the nodes of a slab keep their position along its normal, and move freely in the plane).
+class DirectionalConstraint : public Component, public ProjectiveConstraint {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  const std::vector<int>& fixedNodes() const override { return none_; }
+  const std::vector<std::pair<int, Eigen::Vector3d>>& heldDirections() const override { return held_; }
+  void init() override {
+    state_ = &contextState(*this);
+    const int n = state_->size();
+    std::vector<int> nodes;
+    if (typeName() == "FixedPlaneProjectiveConstraint") {
+      const auto& d = attrs_.reals("direction");
+      const Eigen::Vector3d dir(d[0], d[1], d[2]);
+      if (!(dir.norm() > 0)) throw error("direction", "must not be zero");
+      const Eigen::Vector3d u = dir.normalized();
+      if (attrs_.isSet("indices")) {
+        nodes = linkedInts("indices");
+      } else {
+        const double lo = attrs_.real("dmin"), hi = attrs_.real("dmax");
+        if (lo > hi) throw error("dmax", "is below dmin");
+        for (int i = 0; i < n; ++i) {
+          const double s = u.dot(state_->x0.col(i));
+          if (s >= lo && s <= hi) nodes.push_back(i);
+        }
+      }
+      for (int i : nodes) held_.push_back({i, u});
+    } else {
+      const auto& axes = attrs_.ints("fixedDirections");
+      if (axes.size() != 3)
+        throw error("fixedDirections", "takes three flags (x y z) on a Vec3d object; rigid objects are driven, not constrained");
+      if (attrs_.boolean("fixAll")) {
+        for (int i = 0; i < n; ++i) nodes.push_back(i);
+      } else {
+        nodes = linkedInts("indices");
+      }
+      for (int i : nodes)
+        for (int a = 0; a < 3; ++a)
+          if (axes[a] != 0) held_.push_back({i, Eigen::Vector3d::Unit(a)});
+    }
+    for (int i : nodes)
+      if (i < 0 || i >= n)
+        throw error("indices", "node " + std::to_string(i) + " is out of range (the MechanicalObject has " + std::to_string(n) + " nodes)");
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  std::vector<int> none_;
+  std::vector<std::pair<int, Eigen::Vector3d>> held_;
+};
+
 class BoxROI : public Component {
  public:
   using Component::Component;
@@ -145,6 +198,35 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<FixedConstraint>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "PartialFixedProjectiveConstraint";
+    s.aliases = {"PartialFixedConstraint"};
+    s.category = "constraint";
+    s.doc = "Holds chosen nodes along chosen axes (fixedDirections=\"1 0 1\": x and z held, y free): those "
+            "components of their motion are projected out of the system, the others move freely.";
+    s.add(AttrSpec::ints("indices").def("0").atLeast(0).linked().help("the nodes (SOFA's default: node 0)"));
+    s.add(AttrSpec::ints("fixedDirections").def("1 1 1").help("per axis x y z: 1 holds it, 0 leaves it free"));
+    s.add(AttrSpec::boolean("fixAll").def("false").help("every node"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<DirectionalConstraint>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "FixedPlaneProjectiveConstraint";
+    s.aliases = {"FixedPlaneConstraint"};
+    s.category = "constraint";
+    s.doc = "Keeps nodes in their plane: the nodes whose rest position p has dmin <= p . direction <= dmax (or the "
+            "given indices) cannot move along `direction`, and move freely in the plane across it.";
+    s.add(AttrSpec::reals("direction", 3).def("0 0 1").help("the plane's normal (need not be unit)"));
+    s.add(AttrSpec::real("dmin").def("0").unit(Dimension::length()).help("lower bound of p . direction (direction normalised)"));
+    s.add(AttrSpec::real("dmax").def("0").unit(Dimension::length()).help("upper bound of p . direction"));
+    s.add(AttrSpec::ints("indices").atLeast(0).linked().help("the nodes, instead of the slab"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<DirectionalConstraint>(c); };
     r.add(std::move(s));
   }
   {

@@ -68,6 +68,22 @@ void BlockSparseMatrix::constrainNodes(const std::vector<int>& nodes) {
   for (int i : nodes) block(diag_[i]).setIdentity();
 }
 
+void BlockSparseMatrix::projectNodes(const std::vector<std::pair<int, Eigen::Matrix3d>>& projectors) {
+  if (projectors.empty()) return;
+  std::vector<const Eigen::Matrix3d*> P(n_, nullptr);
+  for (const auto& [i, p] : projectors) P[i] = &p;
+  for (int i = 0; i < n_; ++i)
+    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s) {
+      const int j = cols_[s];
+      if (!P[i] && !P[j]) continue;
+      Eigen::Matrix3d b = block(s);
+      if (P[i]) b = *P[i] * b;
+      if (P[j]) b = b * *P[j];
+      block(s) = b;
+    }
+  for (const auto& [i, p] : projectors) block(diag_[i]) += Eigen::Matrix3d::Identity() - p;
+}
+
 Eigen::MatrixXd BlockSparseMatrix::toDense() const {
   Eigen::MatrixXd d = Eigen::MatrixXd::Zero(3 * n_, 3 * n_);
   for (int i = 0; i < n_; ++i)

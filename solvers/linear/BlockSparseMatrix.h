@@ -36,6 +36,9 @@ class BlockSparseMatrix {
   void scale(double a);
   // Replaces block rows and columns of `nodes` by identity rows/columns (projective constraints).
   void constrainNodes(const std::vector<int>& nodes);
+  // For nodes whose motion is projected by P (partly held): block (i, j) becomes P_i A_ij P_j and
+  // each such diagonal block gains I - P_i, so that the held directions solve to zero.
+  void projectNodes(const std::vector<std::pair<int, Eigen::Matrix3d>>& projectors);
   // Dense copy, for tests and small problems.
   Eigen::MatrixXd toDense() const;
 

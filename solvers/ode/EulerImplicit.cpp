@@ -59,7 +59,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       // A = kFact K + mFact M, constrained.
       K_.scale(kFact);
       sys_->addMass(K_, mFact);
-      K_.constrainNodes(sys_->fixedNodes());
+      sys_->constrain(K_);
       problem.matrix = &K_;
       problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         q.resize(p.size());

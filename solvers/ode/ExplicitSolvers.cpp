@@ -54,7 +54,7 @@ class ExplicitSolver : public Component, public OdeSolver {
       sys_->assembleStiffness(M_);  // for the pattern; the values are replaced by M's
       M_.setZero();
       sys_->addMass(M_, 1.0);
-      M_.constrainNodes(sys_->fixedNodes());
+      sys_->constrain(M_);
       problem.matrix = &M_;
       problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         q.resize(p.size());

@@ -78,7 +78,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
       // Solve (-K) dx = f.
       sys_->assembleStiffness(K_);
       K_.scale(-1.0);
-      K_.constrainNodes(sys_->fixedNodes());
+      sys_->constrain(K_);
       Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(r.data(), 3 * n), dx;
       if (exact_) {
         Eigen::SparseMatrix<double> A = toSparse(K_);

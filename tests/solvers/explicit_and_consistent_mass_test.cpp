@@ -212,3 +212,31 @@ TEST(ConsistentMass, IsTheExactMatrixOfTrilinearHexahedra) {
   EXPECT_LT((d.row(2).array() - d(2, 0)).abs().maxCoeff(), 1e-10);
   EXPECT_NEAR(d(2, 0), -0.01 * 10 * 55 * 0.01, 1e-10);  // implicit Euler: x_n = x_0 + h^2 g n (n + 1) / 2
 }
+
+// Directional projective constraints: with every node held along z (FixedPlaneProjectiveConstraint
+// over a slab holding the body) or along x and z (PartialFixedProjectiveConstraint), a body under
+// gravity keeps those coordinates exactly and falls freely along the rest (implicit Euler:
+// x_n = x_0 + h^2 g n (n + 1) / 2; the FEM exerts nothing on a translation), with a direct solver
+// (the constrained matrix P A P + I - P) and with conjugate gradients (projected products).
+TEST(ProjectiveConstraints, HeldDirectionsStayAndTheRestFallsFreely) {
+  const std::string fem = R"(<TetrahedronFEMForceField youngModulus="100" poissonRatio="0.3"/>)";
+  for (const char* solver : {"<EulerImplicitSolver/><SparseLDLSolver/>",
+                             R"(<EulerImplicitSolver/><CGLinearSolver iterations="200" tolerance="1e-14" threshold="1e-30"/>)"}) {
+    for (const char* held : {R"(<FixedPlaneProjectiveConstraint direction="0 0 2" dmin="-1" dmax="2"/>)",
+                             R"(<PartialFixedProjectiveConstraint fixAll="true" fixedDirections="1 0 1"/>)"}) {
+      const bool plane = std::string(held).find("Plane") != std::string::npos;
+      auto scene = build(blockScene(solver, std::string("<UniformMass totalMass=\"1\"/>") + fem + held, "1 2 -3"));
+      Simulation sim(*scene);
+      const Eigen::Matrix3Xd x0 = dofs(*scene).x;
+      for (int i = 0; i < 10; ++i) ASSERT_FALSE(sim.step());
+      const Eigen::Matrix3Xd d = dofs(*scene).x - x0;
+      const double fall = 0.01 * 0.01 * 55;  // h^2 n (n + 1) / 2 for g = 1
+      for (int i = 0; i < d.cols(); ++i) {
+        EXPECT_EQ(d(2, i), 0.0) << solver << held;
+        EXPECT_NEAR(d(1, i), 2 * fall, 1e-9) << solver << held;
+        if (plane) EXPECT_NEAR(d(0, i), fall, 1e-9) << solver << held;
+        else EXPECT_EQ(d(0, i), 0.0) << solver << held;
+      }
+    }
+  }
+}

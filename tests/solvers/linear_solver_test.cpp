@@ -450,3 +450,18 @@ TEST(MinimumResidual, SolvesSymmetricIndefiniteSystems) {
     EXPECT_LT(relResidual(s.dense, x, b), 1e-9) << shift;  // the recurrence's residual is the true one
   }
 }
+
+// projectNodes turns A into P A P + (I - P) on the partly held nodes' rows and columns.
+TEST(BlockSparseMatrix, ProjectNodesGivesPAPPlusTheHeldIdentity) {
+  RandomSystem s = randomSymmetric(12, 3, 1.0, 61);
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 2, 2).normalized();
+  const Eigen::Matrix3d P1 = Eigen::Matrix3d::Identity() - n * n.transpose();
+  Eigen::Matrix3d P5 = Eigen::Matrix3d::Identity();
+  P5(0, 0) = P5(2, 2) = 0;  // x and z held
+  s.A.projectNodes({{1, P1}, {5, P5}});
+  MatrixXd P = MatrixXd::Identity(s.A.rows(), s.A.rows());
+  P.block<3, 3>(3, 3) = P1;
+  P.block<3, 3>(15, 15) = P5;
+  const MatrixXd expected = P * s.dense * P + (MatrixXd::Identity(s.A.rows(), s.A.rows()) - P);
+  EXPECT_LT((s.A.toDense() - expected).norm(), 1e-12 * expected.norm());
+}
