@@ -7,6 +7,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/SurfaceFile.h"
 #include "io/scene/InputCache.h"
 #include "io/surface/SurfaceMesh.h"
 
@@ -53,17 +54,10 @@ void VisualModel::init() {
 }
 
 void VisualModel::fromFile() {
-  const std::string path = scene().resolvePath(attrs_.str("filename"));
-  if (!std::filesystem::exists(path)) throw error("filename", "surface file '" + path + "' does not exist");
-  io::SurfaceMesh s;
-  try {
-    s = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
-  } catch (const Error& e) {
-    throw error("filename", e.what());
-  }
+  const io::SurfaceMesh& s = *readSurfaceAttribute(*this, "filename");
   x0 = s.points;
   triangles = s.triangles;
-  checkTriangles(*this, "filename", triangles, x0.cols(), path);
+  checkTriangles(*this, "filename", triangles, x0.cols(), scene().resolvePath(attrs_.str("filename")));
 }
 
 void VisualModel::fromSource() {

@@ -11,6 +11,7 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
+#include "engine/topology/SurfaceFile.h"
 #include "io/mesh/Spheres.h"
 #include "io/mesh/Mesh.h"
 #include "io/scene/InputCache.h"
@@ -150,15 +151,9 @@ class SurfaceSetContainer : public Component, public Topology {
     if (filled_) return;
     if constexpr (K == 3) {
       if (attrs_.isSet("fileTopology") && !attrs_.str("fileTopology").empty()) {
-        const std::string path = scene().resolvePath(attrs_.str("fileTopology"));
-        if (!std::filesystem::exists(path)) throw error("fileTopology", "surface file '" + path + "' does not exist");
-        try {
-          const auto surface = io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
-          points_ = surface->points;
-          faces_ = surface->triangles;
-        } catch (const Error& e) {
-          throw error("fileTopology", e.what());
-        }
+        const auto surface = readSurfaceAttribute(*this, "fileTopology");
+        points_ = surface->points;
+        faces_ = surface->triangles;
       }
     }
     if (attrs_.isSet("src")) {
@@ -307,13 +302,7 @@ class SurfaceLoader : public Component, public Topology {
  public:
   using Component::Component;
   void init() override {
-    const std::string path = scene().resolvePath(attrs_.str("filename"));
-    if (!std::filesystem::exists(path)) throw error("filename", "surface file '" + path + "' does not exist");
-    try {
-      surface_ = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
-    } catch (const Error& e) {
-      throw error("filename", e.what());
-    }
+    surface_ = *readSurfaceAttribute(*this, "filename");
     applyPlacement(attrs_, surface_.points);
     if (attrs_.boolean("flipNormals")) io::flipSurface(surface_);
   }
@@ -468,14 +457,7 @@ class SparseGridTopology : public Component, public Topology {
  public:
   using Component::Component;
   void init() override {
-    const std::string path = scene().resolvePath(attrs_.str("fileTopology"));
-    if (!std::filesystem::exists(path)) throw error("fileTopology", "surface file '" + path + "' does not exist");
-    io::SurfaceMesh surface;
-    try {
-      surface = *io::cachedRead<io::SurfaceMesh>(path, [](const std::string& p) { return io::readSurface(p); });
-    } catch (const Error& e) {
-      throw error("fileTopology", e.what());
-    }
+    const io::SurfaceMesh& surface = *readSurfaceAttribute(*this, "fileTopology");
     const auto& nn = attrs_.ints("n");
     const std::array<int, 3> n{nn[0], nn[1], nn[2]};
     for (int a = 0; a < 3; ++a)

@@ -90,6 +90,21 @@ VectorXd randomVector(int n, unsigned seed) {
   return v;
 }
 
+// A random SPD system (150 block rows) scaled symmetrically by S = diag(10^u), u uniform in
+// [-decades, decades]: condition numbers up to 10^(4 decades) times the original's.
+RandomSystem badlyScaled(unsigned seed, double decades) {
+  RandomSystem s = randomSymmetric(150, 4, 0.5, seed);
+  std::mt19937 rng(seed + 1);
+  std::uniform_real_distribution<double> u(-decades, decades);
+  VectorXd S(s.A.rows());
+  for (int i = 0; i < S.size(); ++i) S[i] = std::pow(10.0, u(rng));
+  s.dense = S.asDiagonal() * s.dense * S.asDiagonal();
+  for (int i = 0; i < s.A.blockRows(); ++i)
+    for (int sl = s.A.rowStart()[i]; sl < s.A.rowStart()[i + 1]; ++sl)
+      s.A.block(sl) = s.dense.block<3, 3>(3 * i, 3 * s.A.cols()[sl]);
+  return s;
+}
+
 double relResidual(const MatrixXd& A, const VectorXd& x, const VectorXd& b) { return (b - A * x).norm() / b.norm(); }
 
 // Textbook unpreconditioned CG from zero, recording p_k^T A p_k of every iteration.
@@ -274,15 +289,7 @@ TEST(ConjugateGradient, WarmStart) {
 // Jacobi CG, which reaches 1e-10 and agrees with LDL^T. Without a diagonal in the problem,
 // Jacobi falls back to plain CG (same iteration count).
 TEST(ConjugateGradient, JacobiHelpsBadlyScaledSystems) {
-  RandomSystem s = randomSymmetric(150, 4, 0.5, 31);
-  std::mt19937 rng(32);
-  std::uniform_real_distribution<double> u(-2, 2);
-  VectorXd S(s.A.rows());
-  for (int i = 0; i < S.size(); ++i) S[i] = std::pow(10.0, u(rng));
-  s.dense = S.asDiagonal() * s.dense * S.asDiagonal();
-  for (int i = 0; i < s.A.blockRows(); ++i)
-    for (int sl = s.A.rowStart()[i]; sl < s.A.rowStart()[i + 1]; ++sl)
-      s.A.block(sl) = s.dense.block<3, 3>(3 * i, 3 * s.A.cols()[sl]);
+  RandomSystem s = badlyScaled(31, 2);
   const VectorXd b = randomVector(s.A.rows(), 33);
   CgOptions o;
   o.maxIterations = 2000;
@@ -390,15 +397,7 @@ TEST(CholmodSolver, IndefiniteMatrixFailsSimplicial) {
 // preconditioner it stops at the first iterate whose squared relative residual is below the
 // tolerance (the textbook CG iterate of that count), and it starts from the x it is given.
 TEST(PreconditionedConjugateGradient, PreconditionersAndSofasStoppingRule) {
-  RandomSystem s = randomSymmetric(150, 4, 0.5, 41);
-  std::mt19937 rng(42);
-  std::uniform_real_distribution<double> u(-1, 1);
-  VectorXd S(s.A.rows());
-  for (int i = 0; i < S.size(); ++i) S[i] = std::pow(10.0, u(rng));
-  s.dense = S.asDiagonal() * s.dense * S.asDiagonal();
-  for (int i = 0; i < s.A.blockRows(); ++i)
-    for (int sl = s.A.rowStart()[i]; sl < s.A.rowStart()[i + 1]; ++sl)
-      s.A.block(sl) = s.dense.block<3, 3>(3 * i, 3 * s.A.cols()[sl]);
+  RandomSystem s = badlyScaled(41, 1);
   const VectorXd b = randomVector(s.A.rows(), 43);
   const VectorXd exact = s.dense.ldlt().solve(b);
   const Preconditioner jacobi = jacobiPreconditioner(s.A), block = blockJacobiPreconditioner(s.A),
