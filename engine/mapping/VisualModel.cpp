@@ -118,30 +118,30 @@ void VisualModel::setDriver(const Component& mapping) {
   driver_ = &mapping;
 }
 
-const TetList* tetrahedraAbove(Scene& scene, const Node& from) {
+namespace {
+// The nearest topology in `from` or above (later ones in a node first) that `has` accepts.
+template <class Has>
+const Topology* topologyAbove(Scene& scene, const Node& from, Has has) {
   for (const Node* n = &from; n; n = n->parent()) {
     const auto& comps = n->components();
     for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
       auto* t = dynamic_cast<Topology*>(it->get());
       if (!t) continue;
       scene.initComponent(**it);
-      if (t->tetrahedra().cols() > 0) return &t->tetrahedra();
+      if (has(*t)) return t;
     }
   }
   return nullptr;
 }
+}  // namespace
+
+const TetList* tetrahedraAbove(Scene& scene, const Node& from) {
+  const Topology* t = topologyAbove(scene, from, [](const Topology& t) { return t.tetrahedra().cols() > 0; });
+  return t ? &t->tetrahedra() : nullptr;
+}
 
 const Topology* hexahedraAbove(Scene& scene, const Node& from) {
-  for (const Node* n = &from; n; n = n->parent()) {
-    const auto& comps = n->components();
-    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
-      auto* t = dynamic_cast<Topology*>(it->get());
-      if (!t) continue;
-      scene.initComponent(**it);
-      if (!t->hexahedra().empty()) return t;
-    }
-  }
-  return nullptr;
+  return topologyAbove(scene, from, [](const Topology& t) { return !t.hexahedra().empty(); });
 }
 
 void checkVec3Template(const Component& c) {
