@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
@@ -83,26 +84,32 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
 
 int MechanicalSystem::nodes() const { return state_->size(); }
 
-void MechanicalSystem::computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) {
+void MechanicalSystem::computeForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v,
+                                    Eigen::Matrix3Xd& f) const {
   f.setZero(3, x.cols());
-  for (ForceField* ff : forces_) ff->addForce(x, v, f);
+  for (ForceField* ff : forces_) ff->addForce(s, x, v, f);
 }
 
-void MechanicalSystem::addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor, double undampedScale) const {
-  for (ForceField* ff : forces_) ff->addDForce(dx, df, ff->rayleighDamped() ? factor : factor * undampedScale);
+void MechanicalSystem::addKdx(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor,
+                              double undampedScale) const {
+  for (ForceField* ff : forces_) ff->addDForce(s, dx, df, ff->rayleighDamped() ? factor : factor * undampedScale);
 }
 
-void MechanicalSystem::assembleStiffness(BlockSparseMatrix& K, double undampedScale) {
-  if (!patternReady_ || K.blockRows() != nodes()) {
-    std::vector<std::pair<int, int>> pairs;
-    for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
-    for (Mass* m : consistent_) m->massPattern(pairs);
-    K.setPattern(nodes(), pairs);
-    for (ForceField* ff : forces_) ff->prepareAssembly(K);
-    patternReady_ = true;
-  }
+void MechanicalSystem::prepareAssembly() {
+  if (patternReady_) return;
+  std::vector<std::pair<int, int>> pairs;
+  for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
+  for (Mass* m : consistent_) m->massPattern(pairs);
+  pattern_.setPattern(nodes(), pairs);
+  for (ForceField* ff : forces_) ff->prepareAssembly(pattern_);
+  patternReady_ = true;
+}
+
+void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale) const {
+  if (!patternReady_) throw std::logic_error("MechanicalSystem::assembleStiffness before prepareAssembly");
+  if (K.blockRows() != nodes()) K = pattern_;
   K.setZero();
-  for (ForceField* ff : forces_) ff->addStiffness(K, ff->rayleighDamped() ? 1.0 : undampedScale);
+  for (ForceField* ff : forces_) ff->addStiffness(s, K, ff->rayleighDamped() ? 1.0 : undampedScale);
 }
 
 void MechanicalSystem::addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {

@@ -40,15 +40,22 @@ class MechanicalSystem {
   void constrain(BlockSparseMatrix& A) const;
   const std::vector<ForceField*>& forceFields() const { return forces_; }
 
-  // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x.
-  void computeForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f);
+  // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x (the
+  // linearisation is kept in `s`).
+  void computeForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const;
   // df += factor * K dx, matrix-free. `undampedScale` multiplies the K of force fields that
   // Rayleigh damping does not apply to (contact), so that a solver can form
   // K_damped + undampedScale K_undamped in one pass.
-  void addKdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor, double undampedScale = 1.0) const;
+  void addKdx(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor,
+              double undampedScale = 1.0) const;
+  // Fixes the pattern of the assembled matrix (part of the model): solvers that assemble call it
+  // at init.
+  void prepareAssembly();
+  // The prepared pattern, with zero values.
+  const BlockSparseMatrix& pattern() const { return pattern_; }
   // K_damped + undampedScale K_undamped (as the force fields report it at their last
-  // linearisation) into `K`; the pattern is built on first use and kept.
-  void assembleStiffness(BlockSparseMatrix& K, double undampedScale = 1.0);
+  // linearisation in `s`) into `K`, which takes the prepared pattern on first use.
+  void assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale = 1.0) const;
   // Zeroes the rows of fixed nodes and projects those of partly held ones.
   void project(Eigen::Matrix3Xd& v) const;
   // Non-finite values and inverted elements at (x, v), as a failure, or nothing.
@@ -63,6 +70,7 @@ class MechanicalSystem {
   Eigen::VectorXd mass_;
   Eigen::VectorXd diagonalMass_;      // the sum of the lumped masses
   std::vector<Mass*> consistent_;     // masses with off-diagonal terms
+  BlockSparseMatrix pattern_;        // the assembled matrix's pattern, zero values
   bool patternReady_ = false;
 };
 

@@ -13,6 +13,7 @@ namespace viscera {
 
 class BlockSparseMatrix;
 class MechanicalObject;
+class State;
 
 using TetList = Eigen::Matrix<int, 4, Eigen::Dynamic>;  // 4 x #tets
 using HexList = std::vector<std::array<int, 8>>;
@@ -28,22 +29,24 @@ class Topology {
   virtual std::array<int, 3> gridCells() const { return {0, 0, 0}; }
 };
 
-// Forces on the nodes of one MechanicalObject. `addForce` also linearises at x; `addDForce`
-// and `addStiffness` use that linearisation (K = df/dx as the solver uses it).
+// Forces on the nodes of one MechanicalObject. `addForce` also linearises at x, keeping the
+// linearisation in the state; `addDForce` and `addStiffness` use it (K = df/dx as the solver uses
+// it). Like every role below, it changes nothing in the component while stepping: what changes is
+// in the State it is given.
 class ForceField {
  public:
   virtual ~ForceField() = default;
   virtual MechanicalObject& mstate() const = 0;
   // f += f(x, v).
-  virtual void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) = 0;
+  virtual void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const = 0;
   // df += kFactor * K dx.
-  virtual void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {}
+  virtual void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {}
   // Node pairs coupled by K (for the sparsity pattern).
   virtual void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {}
-  // Called after the pattern is fixed, to precompute value slots.
+  // Called once the model's pattern is fixed (before stepping), to precompute value slots.
   virtual void prepareAssembly(const BlockSparseMatrix& K) {}
   // K += kFactor * (the force field's K).
-  virtual void addStiffness(BlockSparseMatrix& K, double kFactor) const {}
+  virtual void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {}
   // Potential energy at x (0 when the field has none).
   virtual double potentialEnergy(const Eigen::Matrix3Xd& x) const { return 0.0; }
   // Whether Rayleigh stiffness damping applies to this field's K. Contact penalties return false:
@@ -117,9 +120,9 @@ class OdeSolver {
   // linear system (or is idle).
   virtual std::optional<StepResponse> stepResponse(double dt) const { return std::nullopt; }
   // Advances from time t to t + dt; returns a failure instead of writing bad state.
-  virtual std::optional<Diverged> step(double t, double dt, int stepIndex) = 0;
+  virtual std::optional<Diverged> step(State& s, double t, double dt, int stepIndex) const = 0;
   // Statistics of the last step (linear iterations, residual), for summaries.
-  virtual int lastLinearIterations() const { return 0; }
+  virtual int lastLinearIterations(const State& s) const { return 0; }
 };
 
 // Sets a kinematically driven state (an instrument) for time t: called with the start time before
@@ -128,7 +131,7 @@ class OdeSolver {
 class Driver {
  public:
   virtual ~Driver() = default;
-  virtual void drive(double t, double dt) = 0;
+  virtual void drive(State& s, double t, double dt) const = 0;
 };
 
 // Changes the state after the solve and the contact constraints of a step, before mappings and
@@ -137,7 +140,7 @@ class Driver {
 class Correction {
  public:
   virtual ~Correction() = default;
-  virtual void correct(double t, int stepIndex) = 0;
+  virtual void correct(State& s, double t, int stepIndex) const = 0;
 };
 
 // Carries the state of a mechanical object to another representation at the end of each step
@@ -146,23 +149,25 @@ class Correction {
 class Mapping {
  public:
   virtual ~Mapping() = default;
-  virtual void apply() = 0;
+  virtual void apply(State& s) const = 0;
   // For mappings linear in their input: the input state, and output point p as a weighted sum of
   // its nodes (what carries forces on the output back to the input). Null / false otherwise.
   virtual MechanicalObject* inputState() const { return nullptr; }
   virtual bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const { return false; }
 };
 
-// Reads the state at the end of a step (exporters, recorders, metrics).
+// Reads the state at the end of a step (exporters, recorders, metrics). Observers write outputs
+// and keep their own bookkeeping (frame counts, files): a scene's observers serve one simulation
+// at a time.
 class Observer {
  public:
   virtual ~Observer() = default;
   // Called once before the first step (t = start time), after every step, and at the end.
-  virtual void begin(double t) {}
-  virtual void observe(double t, int stepIndex) = 0;
+  virtual void begin(const State& s, double t) {}
+  virtual void observe(const State& s, double t, int stepIndex) = 0;
   // The step after `stepIndex` (at t) failed: the state no longer holds that step. Told before end.
-  virtual void diverged(double t, int stepIndex) {}
-  virtual void end(double t, int stepIndex) {}
+  virtual void diverged(const State& s, double t, int stepIndex) {}
+  virtual void end(const State& s, double t, int stepIndex) {}
 };
 
 }  // namespace viscera

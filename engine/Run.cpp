@@ -63,7 +63,7 @@ RunResult runLoop(Simulation& sim, const RunOptions& o) {
   for (int i = 0; i < total; ++i) {
     if ((r.failure = sim.step())) break;
     for (size_t k = 0; k < bodies.size(); ++k) {
-      const RigidObject& b = *bodies[k];
+      const RigidObject::Live& b = bodies[k]->live(sim.state());
       RunResult::Instrument& in = r.instruments[k];
       in.last = {sim.time(), b.force, b.torque, b.contacts};
       if (b.force.norm() > in.peakForce) {
@@ -92,12 +92,12 @@ RunResult runLoop(Simulation& sim, const RunOptions& o) {
   r.steps = sim.steps() - first;
   r.endTime = sim.time();
   for (const MechanicalObject* s : scene.all<MechanicalObject>())
-    r.objects.push_back({s->name(), s->size(), s->size() ? (s->x - s->x0).colwise().norm().maxCoeff() : 0.0});
-  for (size_t k = 0; k < bodies.size(); ++k) r.instruments[k].position = bodies[k]->p;
+    r.objects.push_back({s->name(), s->size(), s->size() ? (s->x(sim.state()) - s->x0).colwise().norm().maxCoeff() : 0.0});
+  for (size_t k = 0; k < bodies.size(); ++k) r.instruments[k].position = bodies[k]->live(sim.state()).p;
   if (const CollisionPipeline* p = sim.pipeline())
     r.contact = RunResult::ContactFigures{
-        p->settings().response == ContactSettings::Response::Penalty ? "penalty" : "constraint", p->maxContacts(),
-        p->maxPenetration(), p->settings().contactDistance};
+        p->settings().response == ContactSettings::Response::Penalty ? "penalty" : "constraint", p->maxContacts(sim.state()),
+        p->maxPenetration(sim.state()), p->settings().contactDistance};
   for (RunObserver* ob : o.observers) ob->end(sim, r);
   return r;
 }
@@ -147,7 +147,9 @@ RunResult run(Simulation& sim, const RunOptions& o) {
 
 RunResult run(Scene& scene, const RunOptions& o) {
   Simulation sim(scene);
-  return run(sim, o);
+  RunResult r = run(sim, o);
+  r.finalState = sim.captureState();
+  return r;
 }
 
 std::string summaryJson(const RunResult& r, const std::string& scene) {
@@ -246,7 +248,7 @@ void WrenchStream::step(const Simulation& sim) {
   if (!file_) return;
   std::ostringstream o;
   wrenchRow(o, sim.time(), bodies_.size(), [&](size_t k) {
-    const RigidObject& b = *bodies_[k];
+    const RigidObject::Live& b = bodies_[k]->live(sim.state());
     return WrenchSample{sim.time(), b.force, b.torque, b.contacts};
   });
   // One write per row, flushed: a process killed between steps leaves whole rows.

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/SceneDesc.h"
 
 namespace viscera {
@@ -109,6 +109,8 @@ struct RunResult {
     double maxPenetration = 0, contactDistance = 0;
   };
   std::optional<ContactFigures> contact;  // when the scene has a collision pipeline
+  // The state at the end, from run(scene, ...) (whose simulation ends with the call).
+  std::optional<State> finalState;
 
   bool ok() const { return status == Status::Ok; }
   double simulatedTime() const { return endTime - startTime; }
@@ -117,7 +119,7 @@ struct RunResult {
 
 // Runs `sim` (already built and initialised) for the options' steps.
 RunResult run(Simulation& sim, const RunOptions& options);
-// Initialises `scene` and runs it.
+// Initialises `scene` and runs a simulation of it; the result keeps its final state.
 RunResult run(Scene& scene, const RunOptions& options);
 
 // The run summary as JSON (what `viscera run --summary` writes); `scene` names the scene file.

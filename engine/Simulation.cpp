@@ -2,10 +2,37 @@
 
 #include "engine/collision/Collision.h"
 
+#include <mutex>
+#include <set>
+
 namespace viscera {
 
+namespace {
+
+// Preparing a model (init, state slots, assembly patterns) happens once, whichever simulation of
+// it comes first; the scene observers each simulation holds.
+std::mutex& modelMutex() {
+  static std::mutex m;
+  return m;
+}
+std::set<const Observer*>& heldObservers() {
+  static std::set<const Observer*> held;
+  return held;
+}
+
+}  // namespace
+
 Simulation::Simulation(Scene& scene) : scene_(scene) {
+  std::lock_guard<std::mutex> lock(modelMutex());
   scene_.init();
+  observers_ = scene_.all<Observer>();
+  for (const Observer* o : observers_)
+    if (heldObservers().count(o)) {
+      const auto& c = dynamic_cast<const Component&>(*o);
+      throw c.error("the " + c.typeName() + " '" + c.name() + "' already serves another simulation of this scene: a "
+                    "scene's outputs are written by one simulation at a time (remove them to run the model in parallel)");
+    }
+  heldObservers().insert(observers_.begin(), observers_.end());
   drivers_ = scene_.all<Driver>();
   auto pipes = scene_.all<CollisionPipeline>();
   if (!pipes.empty()) pipeline_ = pipes.front();
@@ -26,99 +53,92 @@ Simulation::Simulation(Scene& scene) : scene_(scene) {
   corrections_ = scene_.all<Correction>();
   mappings_ = scene_.all<Mapping>();
   stateful_ = scene_.all<Stateful>();
-  for (Stateful* s : stateful_) {
-    const auto& c = dynamic_cast<const Component&>(*s);
+  for (size_t i = 0; i < stateful_.size(); ++i) {
+    const auto& c = dynamic_cast<const Component&>(*stateful_[i]);
     statefulNames_.push_back(c.node().path() + "/" + c.name() + " (" + c.typeName() + ")");
+    // Set by the model's first simulation, the same for every other.
+    if (stateful_[i]->stateSlot() != static_cast<int>(i)) stateful_[i]->setStateSlot(static_cast<int>(i));
+    state_.add(statefulNames_.back(), stateful_[i]->initialState());
   }
-  observers_ = scene_.all<Observer>();
-  time_ = scene_.startTime();
+  state_.time = scene_.startTime();
+}
+
+Simulation::~Simulation() {
+  std::lock_guard<std::mutex> lock(modelMutex());
+  for (const Observer* o : observers_) heldObservers().erase(o);
 }
 
 void Simulation::begin() {
   if (begun_) return;
   begun_ = true;
-  for (Mapping* m : mappings_) m->apply();
-  for (Observer* o : observers_) o->begin(time_);
+  for (Mapping* m : mappings_) m->apply(state_);
+  for (Observer* o : observers_) o->begin(state_, state_.time);
 }
 
 std::optional<Diverged> Simulation::step() {
   begin();
   const double dt = scene_.dt();
-  const double tEnd = scene_.startTime() + (steps_ + 1) * dt;
+  State& st = state_;
+  const int next = st.steps + 1;
+  const double tEnd = scene_.startTime() + next * dt;
   // Instruments to their end-of-step pose, contacts against the tissue at the step start, the
   // (free) motion of every body, then the contact constraints.
-  for (Driver* d : drivers_) d->drive(tEnd, dt);
+  for (Driver* d : drivers_) d->drive(st, tEnd, dt);
   auto failed = [this](std::optional<Diverged> bad) {
-    for (Observer* o : observers_) o->diverged(time_, steps_);
+    for (Observer* o : observers_) o->diverged(state_, state_.time, state_.steps);
     return bad;
   };
   if (pipeline_)
-    if (auto bad = pipeline_->detect(steps_ + 1, time_)) return failed(bad);
+    if (auto bad = pipeline_->detect(st, next, st.time)) return failed(bad);
   for (OdeSolver* s : solvers_)
-    if (auto bad = s->step(time_, dt, steps_ + 1)) return failed(bad);
+    if (auto bad = s->step(st, st.time, dt, next)) return failed(bad);
   if (pipeline_ && constraints_)
-    if (auto bad = constraints_->solve(*pipeline_, dt, steps_ + 1, tEnd)) return failed(bad);
-  if (pipeline_) pipeline_->finish();
-  for (Correction* c : corrections_) c->correct(tEnd, steps_ + 1);
-  ++steps_;
+    if (auto bad = constraints_->solve(st, *pipeline_, dt, next, tEnd)) return failed(bad);
+  if (pipeline_) pipeline_->finish(st);
+  for (Correction* c : corrections_) c->correct(st, tEnd, next);
+  st.steps = next;
   // Accumulate the time from the step count so that long runs do not drift.
-  time_ = scene_.startTime() + steps_ * dt;
-  for (Mapping* m : mappings_) m->apply();
-  for (Observer* o : observers_) o->observe(time_, steps_);
+  st.time = scene_.startTime() + next * dt;
+  for (Mapping* m : mappings_) m->apply(st);
+  for (Observer* o : observers_) o->observe(st, st.time, st.steps);
   return std::nullopt;
 }
 
 void Simulation::end() {
   if (ended_) return;
   ended_ = true;
-  for (Observer* o : observers_) o->end(time_, steps_);
-}
-
-State Simulation::captureState() const {
-  State s;
-  s.time = time_;
-  s.steps = steps_;
-  s.blocks.resize(stateful_.size());
-  for (size_t i = 0; i < stateful_.size(); ++i) {
-    s.blocks[i].component = statefulNames_[i];
-    StateWriter w(s.blocks[i].bytes);
-    stateful_[i]->saveState(w);
-  }
-  return s;
+  for (Observer* o : observers_) o->end(state_, state_.time, state_.steps);
 }
 
 void Simulation::restoreState(const State& s) {
   // Check the whole state against the model before changing anything.
-  if (s.blocks.size() != stateful_.size())
-    throw Error("the state has " + std::to_string(s.blocks.size()) + " component blocks; this model has " +
+  if (s.blockCount() != stateful_.size())
+    throw Error("the state has " + std::to_string(s.blockCount()) + " component blocks; this model has " +
                 std::to_string(stateful_.size()) + ": it belongs to another model");
   for (size_t i = 0; i < stateful_.size(); ++i)
-    if (s.blocks[i].component != statefulNames_[i])
-      throw Error("the state's block " + std::to_string(i) + " is of " + s.blocks[i].component + ", this model has " +
+    if (s.component(i) != statefulNames_[i])
+      throw Error("the state's block " + std::to_string(i) + " is of " + s.component(i) + ", this model has " +
                   statefulNames_[i] + " there: it belongs to another model");
-  const State before = captureState();
-  try {
-    for (size_t i = 0; i < stateful_.size(); ++i) {
-      StateReader r(s.blocks[i].bytes, statefulNames_[i]);
-      stateful_[i]->loadState(r);
-      r.finish();
-    }
-  } catch (const Error&) {
-    // A block that does not fit (other sizes): leave the simulation as it was.
-    for (size_t i = 0; i < stateful_.size(); ++i) {
-      StateReader r(before.blocks[i].bytes, statefulNames_[i]);
-      stateful_[i]->loadState(r);
-    }
-    throw;
+  // Each block is read into a fresh one of this model's (so a block of other sizes is refused)
+  // and the simulation's state replaced only once all fit.
+  State next;
+  for (size_t i = 0; i < stateful_.size(); ++i) {
+    std::unique_ptr<ComponentState> block = stateful_[i]->initialState();
+    const std::vector<char> bytes = s.bytesOf(i);
+    StateReader r(bytes, statefulNames_[i]);
+    block->load(r);
+    r.finish();
+    next.add(statefulNames_[i], std::move(block));
   }
-  time_ = s.time;
-  steps_ = s.steps;
-  for (Mapping* m : mappings_) m->apply();
+  next.time = s.time;
+  next.steps = s.steps;
+  state_ = std::move(next);
+  for (Mapping* m : mappings_) m->apply(state_);
 }
 
 int Simulation::lastLinearIterations() const {
   int n = 0;
-  for (OdeSolver* s : solvers_) n += s->lastLinearIterations();
+  for (OdeSolver* s : solvers_) n += s->lastLinearIterations(state_);
   return n;
 }
 

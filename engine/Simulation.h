@@ -1,12 +1,16 @@
 // The step loop: drivers -> collision -> each solver node integrates (with its health check) ->
 // contact constraints -> corrections -> mappings -> observers. One explicit loop, no visitors.
+//
+// A simulation is a model (a built, initialised scene, read-only while stepping) and its own State.
+// Several simulations of one model step at once in threads; a scene's observers (exporters,
+// cameras) serve one of them at a time.
 #pragma once
 
 #include <optional>
 #include <vector>
 
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/Scene.h"
 
 namespace viscera {
@@ -16,8 +20,12 @@ class ConstraintSolver;
 
 class Simulation {
  public:
-  // Initialises the scene if needed and collects its solvers and observers.
+  // Initialises the scene if needed, collects its solvers and observers and makes the initial
+  // state. Throws if the scene has observers and another simulation of it is alive.
   explicit Simulation(Scene& scene);
+  ~Simulation();
+  Simulation(const Simulation&) = delete;
+  Simulation& operator=(const Simulation&) = delete;
 
   // Observers see the initial state.
   void begin();
@@ -26,8 +34,11 @@ class Simulation {
   // Observers finish (write indices, close files).
   void end();
 
-  // Everything that changes while stepping, as one value (see State.h).
-  State captureState() const;
+  // Everything that changes while stepping (see State.h), live.
+  State& state() { return state_; }
+  const State& state() const { return state_; }
+  // A copy of the state.
+  State captureState() const { return state_; }
   // Continues from `state`, captured from a simulation of the same model (same scene structure
   // and sizes; parameters may differ). Mappings are re-applied; observers are not told.
   void restoreState(const State& state);
@@ -35,8 +46,8 @@ class Simulation {
   // A correction run after every step's solve, after the scene's own corrections (not owned).
   void addCorrection(Correction& c) { corrections_.push_back(&c); }
 
-  double time() const { return time_; }
-  int steps() const { return steps_; }
+  double time() const { return state_.time; }
+  int steps() const { return state_.steps; }
   Scene& scene() { return scene_; }
   const Scene& scene() const { return scene_; }
   // Linear iterations of the last step, summed over solvers.
@@ -56,8 +67,7 @@ class Simulation {
   std::vector<Stateful*> stateful_;
   std::vector<std::string> statefulNames_;  // path and type of each, to check a restored state
   std::vector<Observer*> observers_;
-  double time_ = 0;
-  int steps_ = 0;
+  State state_;
   bool begun_ = false, ended_ = false;
 };
 

@@ -55,7 +55,7 @@ class DepthCameraComponent : public Component, public Observer {
     // Labels: the deformable bodies first (in scene order), then the spheres, then the table.
     for (obs::TissueSurface& b : obs::tissueSurfaces(scene())) {
       MechanicalObject* state = b.state;
-      const double w = obs::windingNumber(state->x, b.triangles, position);
+      const double w = obs::windingNumber(state->xInit, b.triangles, position);
       if (std::abs(w) > 0.5)
         throw error(poseAttr(), "the camera at " + vecText(position) + " is inside the body of '" + state->name() +
                                     "' (" + state->node().path() + "); place it outside, looking at the tissue");
@@ -101,19 +101,19 @@ class DepthCameraComponent : public Component, public Observer {
     }
   }
 
-  void begin(double t) override {
+  void begin(const State& s, double t) override {
     // The writer creates the folder.
     writer_ = std::make_unique<cloud::CloudSequenceWriter>(scene().outputPath(folderName_), "frame", extension_, encoding_);
     t0_ = t;
-    takeFrame(t, 0);
+    takeFrame(s, t, 0);
   }
 
-  void observe(double t, int) override {
+  void observe(const State& s, double t, int) override {
     // Frame k is due at t0 + k / rate; it is taken at the first step time that reaches it. A
     // millionth of a step absorbs the rounding of the step times.
     const double slots = (t - t0_) * rate_ + 1e-6 * scene().dt() * rate_;
     if (slots < static_cast<double>(nextSlot_)) return;
-    takeFrame(t, static_cast<std::uint64_t>(std::floor(slots)));
+    takeFrame(s, t, static_cast<std::uint64_t>(std::floor(slots)));
   }
 
   // "frames": the number of frames written; "points": the points of each; "emptyFrames": frames
@@ -190,13 +190,16 @@ class DepthCameraComponent : public Component, public Observer {
     return k;
   }
 
-  obs::RenderInput renderInput(bool withSpheres) const {
+  // What the camera sees in state `st`, or at the start without one.
+  obs::RenderInput renderInput(const State* st) const {
     obs::RenderInput in;
-    for (size_t b = 0; b < bodies_.size(); ++b)
-      in.surfaces.push_back({&bodies_[b].state->x, &bodies_[b].triangles, static_cast<int>(b)});
-    if (withSpheres)
+    for (size_t b = 0; b < bodies_.size(); ++b) {
+      const MechanicalObject& m = *bodies_[b].state;
+      in.surfaces.push_back({st ? &m.x(*st) : &m.xInit, &bodies_[b].triangles, static_cast<int>(b)});
+    }
+    if (st)
       for (size_t s = 0; s < spheres_.size(); ++s)
-        in.spheres.push_back({spheres_[s]->centre(), spheres_[s]->radius(), static_cast<int>(bodies_.size() + s)});
+        in.spheres.push_back({spheres_[s]->centre(*st), spheres_[s]->radius(), static_cast<int>(bodies_.size() + s)});
     in.plane = table_;
     return in;
   }
@@ -206,7 +209,7 @@ class DepthCameraComponent : public Component, public Observer {
   // drivers may not have placed them yet.
   void checkInView() {
     if (bodies_.empty() && !table_) return;
-    camera_->render(renderInput(false), image_);
+    camera_->render(renderInput(nullptr), image_);
     if (std::any_of(image_.label.begin(), image_.label.end(), [](int l) { return l >= 0; })) return;
     const Eigen::Vector3d view = pose_.linear().col(2);
     std::ostringstream msg;
@@ -216,8 +219,8 @@ class DepthCameraComponent : public Component, public Observer {
     throw error(poseAttr(), msg.str());
   }
 
-  void takeFrame(double t, std::uint64_t slot) {
-    camera_->render(renderInput(true), image_);
+  void takeFrame(const State& s, double t, std::uint64_t slot) {
+    camera_->render(renderInput(&s), image_);
     obs::Capture c = camera_->capture(image_, noise_, slot, options_);
     nextSlot_ = slot + 1;
     if (c.cloud.empty()) {

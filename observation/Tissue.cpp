@@ -27,7 +27,7 @@ std::vector<TissueSurface> tissueSurfaces(Scene& scene) {
     scene.initComponent(*state);
     const TetList* tets = bodyTetrahedra(*state);
     if (!tets) continue;
-    TissueSurface s{state, boundaryTriangles(*tets, state->x)};
+    TissueSurface s{state, boundaryTriangles(*tets, state->xInit)};
     if (s.triangles.cols() > 0) out.push_back(std::move(s));
   }
   return out;

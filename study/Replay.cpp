@@ -200,7 +200,7 @@ class Scorer : public RunObserver {
       throw Error(SourceLoc{scene.file()}, "the scene has no deformable body with tetrahedra to compare the clouds with");
     int nodes = 0, tris = 0;
     for (const auto& s : surfaces_) {
-      nodes += static_cast<int>(s.state->x.cols());
+      nodes += s.state->size();
       tris += static_cast<int>(s.triangles.cols());
     }
     obs::TriangleList all(3, tris);
@@ -208,7 +208,7 @@ class Scorer : public RunObserver {
     for (const auto& s : surfaces_) {
       all.middleCols(tOff, s.triangles.cols()) = s.triangles.array() + nOff;
       tOff += static_cast<int>(s.triangles.cols());
-      nOff += static_cast<int>(s.state->x.cols());
+      nOff += s.state->size();
     }
     measure_ = std::make_unique<FrameMeasure>(all, nodes, data, o);
     if (o.keepSurfaces) {
@@ -225,9 +225,10 @@ class Scorer : public RunObserver {
   }
 
   void begin(const Simulation& sim, int) override {
+    state_ = &sim.state();
     gather(prev_);
     tPrev_ = sim.time();
-    fPrev_ = tool_ ? tool_->force : Eigen::Vector3d::Zero();
+    fPrev_ = tool_ ? tool_->live(sim.state()).force : Eigen::Vector3d::Zero();
     // Measurements at or before the start see the initial state.
     while (nextFrame_ < data_.data.frames.size() && frameTime(nextFrame_) <= tPrev_) scoreFrame(prev_, false);
     if (data_.scoresWrench())
@@ -237,9 +238,10 @@ class Scorer : public RunObserver {
 
   void step(const Simulation& sim) override {
     const double t = sim.time();
+    state_ = &sim.state();
     gather(cur_);
-    const bool contact = tool_ && tool_->contacts > 0;
-    const Eigen::Vector3d f = tool_ ? tool_->force : Eigen::Vector3d::Zero();
+    const bool contact = tool_ && tool_->live(sim.state()).contacts > 0;
+    const Eigen::Vector3d f = tool_ ? tool_->live(sim.state()).force : Eigen::Vector3d::Zero();
     force_ = f.norm();
     const double h = t - tPrev_;
     while (nextFrame_ < data_.data.frames.size() && frameTime(nextFrame_) <= t) {
@@ -275,8 +277,8 @@ class Scorer : public RunObserver {
   void gather(Eigen::Matrix3Xd& x) const {
     int off = 0;
     for (const auto& s : surfaces_) {
-      x.middleCols(off, s.state->x.cols()) = s.state->x;
-      off += static_cast<int>(s.state->x.cols());
+      x.middleCols(off, s.state->size()) = s.state->x(*state_);
+      off += s.state->size();
     }
   }
   void scoreFrame(const Eigen::Matrix3Xd& x, bool contact) {
@@ -286,7 +288,7 @@ class Scorer : public RunObserver {
     if (fs.time < options_.from || fs.time > options_.to) return;
     fs.contact = contact;
     fs.force = force_;
-    const Eigen::Vector3d tip = sphere_ ? sphere_->centre() : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d tip = sphere_ ? sphere_->centre(*state_) : Eigen::Vector3d::Zero();
     const double radius = sphere_ ? sphere_->radius() : 0.0;
     measure_->measure(fs, k, x, tip, radius);
     if (recorded_) {
@@ -311,6 +313,7 @@ class Scorer : public RunObserver {
   const ReplayOptions& options_;
   RigidObject* tool_;
   std::vector<obs::TissueSurface> surfaces_;
+  const State* state_ = nullptr;  // the state of the simulation being scored
   std::unique_ptr<FrameMeasure> measure_;
   Eigen::Matrix3Xd prev_, cur_, mix_;
   const SphereCollisionModel* sphere_ = nullptr;

@@ -111,15 +111,17 @@ std::unique_ptr<Scene> loadScene(const std::string& path) {
 }
 
 // The state vectors of a MechanicalObject (Vec3d) or RigidObject, as SOFA dumps them.
-bool stateOf(const Component& c, std::vector<double>& x, std::vector<double>& v) {
+bool stateOf(const State& s, const Component& c, std::vector<double>& x, std::vector<double>& v) {
   if (const auto* mo = dynamic_cast<const MechanicalObject*>(&c)) {
-    x.assign(mo->x.data(), mo->x.data() + mo->x.size());
-    v.assign(mo->v.data(), mo->v.data() + mo->v.size());
+    const Eigen::Matrix3Xd &mx = mo->x(s), &mv = mo->v(s);
+    x.assign(mx.data(), mx.data() + mx.size());
+    v.assign(mv.data(), mv.data() + mv.size());
     return true;
   }
-  if (const auto* rb = dynamic_cast<const RigidObject*>(&c)) {
-    x = {rb->p.x(), rb->p.y(), rb->p.z(), rb->q.x(), rb->q.y(), rb->q.z(), rb->q.w()};
-    v = {rb->v.x(), rb->v.y(), rb->v.z(), rb->w.x(), rb->w.y(), rb->w.z()};
+  if (const auto* rigid = dynamic_cast<const RigidObject*>(&c)) {
+    const RigidObject::Live& rb = rigid->live(s);
+    x = {rb.p.x(), rb.p.y(), rb.p.z(), rb.q.x(), rb.q.y(), rb.q.z(), rb.q.w()};
+    v = {rb.v.x(), rb.v.y(), rb.v.z(), rb.w.x(), rb.w.y(), rb.w.z()};
     return true;
   }
   return false;
@@ -163,20 +165,21 @@ class StateRecorder : public RunObserver {
  public:
   StateRecorder(std::vector<const Component*> objects, std::vector<double> times)
       : objects_(std::move(objects)), times_(std::move(times)) {}
-  void begin(const Simulation& sim, int) override { record(sim.time()); }
-  void step(const Simulation& sim) override { record(sim.time()); }
+  void begin(const Simulation& sim, int) override { record(sim.state()); }
+  void step(const Simulation& sim) override { record(sim.state()); }
   // Per time: per object, (x, v).
   std::map<double, std::vector<std::pair<std::vector<double>, std::vector<double>>>> states;
 
  private:
-  void record(double t) {
+  void record(const State& s) {
+    const double t = s.time;
     for (double want : times_)
       if (std::abs(want - t) <= 1e-9 * std::max(1.0, std::abs(want))) {
         auto& row = states[want];
         row.clear();
         for (const Component* c : objects_) {
           std::vector<double> x, v;
-          stateOf(*c, x, v);
+          stateOf(s, *c, x, v);
           row.emplace_back(std::move(x), std::move(v));
         }
       }

@@ -44,11 +44,15 @@ namespace fs = std::filesystem;
 class PoseRecorder : public RunObserver {
  public:
   explicit PoseRecorder(const RigidObject& body) : body_(body) {}
-  void begin(const Simulation& sim, int) override { trajectory.add(sim.time(), body_.p, body_.q); }
-  void step(const Simulation& sim) override { trajectory.add(sim.time(), body_.p, body_.q); }
+  void begin(const Simulation& sim, int) override { record(sim); }
+  void step(const Simulation& sim) override { record(sim); }
   motion::Trajectory trajectory;
 
  private:
+  void record(const Simulation& sim) {
+    const RigidObject::Live& b = body_.live(sim.state());
+    trajectory.add(sim.time(), b.p, b.q);
+  }
   const RigidObject& body_;
 };
 

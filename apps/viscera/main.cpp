@@ -125,9 +125,11 @@ int cmdRun(const RunCommand& o) {
   if (!o.stateOut.empty()) {
     std::ostringstream c;
     c << std::setprecision(17) << "object,node,x,y,z\n";
-    for (const auto* s : scene->all<MechanicalObject>())
+    for (const auto* s : scene->all<MechanicalObject>()) {
+      const Eigen::Matrix3Xd& x = s->x(sim.state());
       for (int i = 0; i < s->size(); ++i)
-        c << s->name() << "," << i << "," << s->x(0, i) << "," << s->x(1, i) << "," << s->x(2, i) << "\n";
+        c << s->name() << "," << i << "," << x(0, i) << "," << x(1, i) << "," << x(2, i) << "\n";
+    }
     writeFileAtomic(o.stateOut, c.str());
   }
   if (!o.saveState.empty()) sim.captureState().save(o.saveState);

@@ -32,7 +32,7 @@ void SphereCollisionModel::init() {
   if (!(radius_ > 0)) throw error("radius", "must be positive");
 }
 
-Eigen::Vector3d SphereCollisionModel::centre() const { return body_->p; }
+Eigen::Vector3d SphereCollisionModel::centre(const State& s) const { return body_->live(s).p; }
 
 void NodeSphereCollisionModel::init() {
   state_ = &contextState(*this, "mstate");
@@ -102,13 +102,26 @@ SurfaceTopology surfaceTopology(const io::TriangleList& boundary, const Eigen::M
 
 }  // namespace
 
-const Eigen::Matrix3Xd& SurfaceCollisionModel::surfacePositions() const { return surfaceState_->x; }
+const Eigen::Matrix3Xd& SurfaceCollisionModel::surfacePositions(const State& s) const { return surfaceState_->x(s); }
 
-Eigen::Vector3d SurfaceCollisionModel::vertexPosition(int v) const {
-  if (vertexMap_.empty()) return state_->x.col(v);
+Eigen::Vector3d SurfaceCollisionModel::vertexPosition(const State& s, int v) const {
+  const Eigen::Matrix3Xd& x = state_->x(s);
+  if (vertexMap_.empty()) return x.col(v);
   Eigen::Vector3d p = Eigen::Vector3d::Zero();
-  for (const auto& [n, w] : vertexMap_[v]) p += w * state_->x.col(n);
+  for (const auto& [n, w] : vertexMap_[v]) p += w * x.col(n);
   return p;
+}
+
+SurfaceCollisionModel::~SurfaceCollisionModel() = default;
+
+SurfaceCollisionModel::Live::Live(const Live& o)
+    : model(o.model), penalty(o.penalty), contacts(o.contacts), bvh(o.bvh ? std::make_shared<Bvh>(*o.bvh) : nullptr) {}
+
+std::unique_ptr<ComponentState> SurfaceCollisionModel::initialState() const {
+  auto l = std::make_unique<Live>();
+  l->model = this;
+  l->bvh = std::make_shared<Bvh>(*bvh0_);
+  return l;
 }
 
 void SurfaceCollisionModel::init() {
@@ -177,9 +190,10 @@ void SurfaceCollisionModel::init() {
   triEdges_ = surface->triEdges;
   edgeTris_ = surface->edgeTris;
   vertexNeighbours_ = surface->vertexNeighbours;
-  bvh_ = std::make_shared<Bvh>();
-  fitBoxes(X);
-  bvh_->tree.build(bvh_->boxes);
+  auto bvh = std::make_shared<Bvh>();
+  fitBoxes(X, *bvh);
+  bvh->tree.build(bvh->boxes);
+  bvh0_ = std::move(bvh);
 }
 
 namespace {
@@ -226,21 +240,22 @@ void SurfaceCollisionModel::checkNodes(const int* nodes, Eigen::Index count, Eig
                   std::to_string(size) + " nodes");
 }
 
-void SurfaceCollisionModel::fitBoxes(const Eigen::Matrix3Xd& x) {
+void SurfaceCollisionModel::fitBoxes(const Eigen::Matrix3Xd& x, Bvh& bvh) const {
   const size_t n = kind_ == Kind::Points ? verts_.size() : tris_.size();
-  bvh_->boxes.resize(n);
+  bvh.boxes.resize(n);
   for (size_t i = 0; i < n; ++i) {
     geom::AabbTree::Box b;
     if (kind_ == Kind::Points) b.extend(x.col(verts_[i]));
     else for (int k : tris_[i]) b.extend(x.col(k));
-    bvh_->boxes[i] = b;
+    bvh.boxes[i] = b;
   }
 }
 
-double SurfaceCollisionModel::distanceTo(const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const {
+double SurfaceCollisionModel::distanceTo(const State& s, const Eigen::Vector3d& p, double within,
+                                         const Eigen::Matrix3Xd& x) const {
   double best = std::numeric_limits<double>::infinity();
   const geom::AabbTree::Box query(p - Eigen::Vector3d::Constant(within), p + Eigen::Vector3d::Constant(within));
-  bvh_->tree.query(query, [&](int i) {
+  stateIn<Live>(s).bvh->tree.query(query, [&](int i) {
     double d;
     if (kind_ == Kind::Points) {
       d = (x.col(verts_[i]) - p).norm();
@@ -253,14 +268,16 @@ double SurfaceCollisionModel::distanceTo(const Eigen::Vector3d& p, double within
   return best < within ? best : std::numeric_limits<double>::infinity();
 }
 
-void SurfaceCollisionModel::refit(const Eigen::Matrix3Xd& x) {
-  fitBoxes(x);
-  bvh_->tree.refit(bvh_->boxes);
+void SurfaceCollisionModel::refit(State& st, const Eigen::Matrix3Xd& x) const {
+  Bvh& bvh = *stateIn<Live>(st).bvh;
+  fitBoxes(x, bvh);
+  bvh.tree.refit(bvh.boxes);
 }
 
-void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
-                                   std::vector<Contact>& out) {
-  const Eigen::Vector3d c = sphere.centre();
+void SurfaceCollisionModel::detect(const State& st, const SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x,
+                                   const ContactSettings& s, std::vector<Contact>& out) const {
+  const Bvh& bvh = *stateIn<Live>(st).bvh;
+  const Eigen::Vector3d c = sphere.centre(st);
   const double R = sphere.radius();
   const double reach = R + s.alarmDistance;
   const geom::AabbTree::Box query(c - Eigen::Vector3d::Constant(reach), c + Eigen::Vector3d::Constant(reach));
@@ -291,7 +308,7 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
   };
 
   if (kind_ == Kind::Points) {
-    bvh_->tree.query(query, [&](int i) {
+    bvh.tree.query(query, [&](int i) {
       const int v = verts_[i];
       const Eigen::Vector3d d = c - x.col(v);
       const double dist = d.norm();
@@ -302,7 +319,7 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
   }
 
   std::set<std::pair<int, int>> seen;  // (feature kind, id): a feature is reported once
-  bvh_->tree.query(query, [&](int t) {
+  bvh.tree.query(query, [&](int t) {
     const auto& tri = tris_[t];
     const Eigen::Vector3d a = x.col(tri[0]), b = x.col(tri[1]), cc = x.col(tri[2]);
     geom::TriangleClosest cl = geom::closestOnTriangle(c, a, b, cc);
@@ -368,12 +385,12 @@ void SurfaceCollisionModel::detect(SphereCollisionModel& sphere, const Eigen::Ma
   });
 }
 
-void SurfaceCollisionModel::saveState(StateWriter& out) const {
+void SurfaceCollisionModel::Live::save(StateWriter& out) const {
   // A contact's sphere is written as its index among the scene's spheres.
-  const auto spheres = scene().all<SphereCollisionModel>();
-  out.put(penalty_);
-  out.count(static_cast<std::int64_t>(contacts_.size()));
-  for (const Contact& c : contacts_) {
+  const auto spheres = model->scene().all<SphereCollisionModel>();
+  out.put(penalty);
+  out.count(static_cast<std::int64_t>(contacts.size()));
+  for (const Contact& c : contacts) {
     out.put(static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()));
     out.put(c.feature);
     out.put(c.count);
@@ -388,10 +405,10 @@ void SurfaceCollisionModel::saveState(StateWriter& out) const {
   }
 }
 
-void SurfaceCollisionModel::loadState(StateReader& in) {
-  const auto spheres = scene().all<SphereCollisionModel>();
-  const int nodes = state_->size();
-  in.get(penalty_);
+void SurfaceCollisionModel::Live::load(StateReader& in) {
+  const auto spheres = model->scene().all<SphereCollisionModel>();
+  const int nodes = model->mstate().size();
+  in.get(penalty);
   const std::int64_t n = in.count();
   if (static_cast<size_t>(n) > in.remaining()) in.mismatch("more contacts than it holds");
   std::vector<Contact> cs(n);
@@ -400,7 +417,7 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
     in.get(sphere);
     if (sphere < 0 || sphere >= static_cast<int>(spheres.size())) in.mismatch("a contact with a sphere it does not have");
     c.sphere = spheres[sphere];
-    c.surface = this;
+    c.surface = model;
     in.get(c.feature);
     in.get(c.count);
     if (c.count < 1 || c.count > kMaxContactNodes) in.mismatch("a contact with " + std::to_string(c.count) + " nodes");
@@ -415,21 +432,23 @@ void SurfaceCollisionModel::loadState(StateReader& in) {
     in.get(c.active);
     in.get(c.k);
   }
-  contacts_ = std::move(cs);
+  contacts = std::move(cs);
 }
 
-void SurfaceCollisionModel::setContacts(std::vector<Contact> c, const ContactSettings& s) {
-  contacts_ = std::move(c);
-  penalty_ = s.response == ContactSettings::Response::Penalty;
+void SurfaceCollisionModel::setContacts(State& st, std::vector<Contact> c, const ContactSettings& s) const {
+  Live& l = stateIn<Live>(st);
+  l.contacts = std::move(c);
+  l.penalty = s.response == ContactSettings::Response::Penalty;
   // SOFA's penalty: each model's contactStiffness factor multiplied, over the distance the contact
   // keeps between the sphere's centre and the surface (contactDistance plus the radius).
-  for (Contact& c : contacts_)
+  for (Contact& c : l.contacts)
     c.k = c.sphere->contactStiffness() * stiffness_ / (s.contactDistance + c.sphere->radius());
 }
 
-void SurfaceCollisionModel::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
-  if (!penalty_) return;
-  for (Contact& c : contacts_) {
+void SurfaceCollisionModel::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const {
+  Live& l = stateIn<Live>(s);
+  if (!l.penalty) return;
+  for (Contact& c : l.contacts) {
     const double g = c.gap(x);
     c.active = g < 0;
     if (!c.active) continue;
@@ -438,9 +457,10 @@ void SurfaceCollisionModel::addForce(const Eigen::Matrix3Xd& x, const Eigen::Mat
   }
 }
 
-void SurfaceCollisionModel::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {
-  if (!penalty_) return;
-  for (const Contact& c : contacts_) {
+void SurfaceCollisionModel::addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {
+  const Live& l = stateIn<Live>(s);
+  if (!l.penalty) return;
+  for (const Contact& c : l.contacts) {
     if (!c.active) continue;
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
     for (int k = 0; k < c.count; ++k) d += c.w[k] * dx.col(c.nodes[k]);
@@ -472,9 +492,10 @@ void SurfaceCollisionModel::stiffnessPattern(std::vector<std::pair<int, int>>& p
   pairs.insert(pairs.end(), unique.begin(), unique.end());
 }
 
-void SurfaceCollisionModel::addStiffness(BlockSparseMatrix& K, double kFactor) const {
-  if (!penalty_) return;
-  for (const Contact& c : contacts_) {
+void SurfaceCollisionModel::addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
+  const Live& l = stateIn<Live>(s);
+  if (!l.penalty) return;
+  for (const Contact& c : l.contacts) {
     if (!c.active) continue;
     const Eigen::Matrix3d nn = -kFactor * c.k * c.n * c.n.transpose();
     for (int a = 0; a < c.count; ++a)
@@ -482,8 +503,8 @@ void SurfaceCollisionModel::addStiffness(BlockSparseMatrix& K, double kFactor) c
   }
 }
 
-void SurfaceCollisionModel::finishPenalty(const Eigen::Matrix3Xd& x) {
-  for (Contact& c : contacts_) c.force = c.active ? Eigen::Vector3d(c.k * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
+void SurfaceCollisionModel::finishPenalty(State& s, const Eigen::Matrix3Xd& x) const {
+  for (Contact& c : stateIn<Live>(s).contacts) c.force = c.active ? Eigen::Vector3d(c.k * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -602,7 +623,7 @@ void CollisionPipeline::init() {
   }
 }
 
-std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
+std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, double t) const {
   // Spheres on different deformable bodies must stay apart (within contactDistance they would touch).
   for (size_t a = 0; a < nodeSpheres_.size(); ++a)
     for (size_t b = a + 1; b < nodeSpheres_.size(); ++b) {
@@ -610,7 +631,7 @@ std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
       if (&A.mstate() == &B.mstate()) continue;
       for (int i = 0; i < A.mstate().size(); ++i)
         for (int j = 0; j < B.mstate().size(); ++j)
-          if ((A.mstate().x.col(i) - B.mstate().x.col(j)).norm() <
+          if ((A.mstate().x(s).col(i) - B.mstate().x(s).col(j)).norm() <
               A.radii()[i] + B.radii()[j] + settings_.contactDistance) {
             Diverged d;
             d.step = stepIndex;
@@ -622,14 +643,14 @@ std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
             return d;
           }
     }
-  for (SurfaceCollisionModel* s : surfaces_) {
-    if (!s->active()) continue;
+  for (const SurfaceCollisionModel* m : surfaces_) {
+    if (!m->active()) continue;
     std::vector<Contact> found;
     // Broad phase: the hierarchy follows the surface once per step; each sphere then visits only
     // the triangles its inflated box touches.
-    s->refit(s->surfacePositions());
-    for (SphereCollisionModel* sp : spheres_) s->detect(*sp, s->surfacePositions(), settings_, found);
-    s->setContacts(std::move(found), settings_);
+    m->refit(s, m->surfacePositions(s));
+    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), settings_, found);
+    m->setContacts(s, std::move(found), settings_);
   }
   // Surfaces of two bodies must stay apart: contact between deformable (or fixed) bodies is not
   // handled, so a vertex coming within the alarm distance of another body's surface (at least a
@@ -639,9 +660,9 @@ std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
       if (a == b || !a->active() || !b->active() || &a->mstate() == &b->mstate()) continue;
       const double margin =
           std::max({settings_.alarmDistance, settings_.contactDistance, 0.05 * std::max(a->meanEdgeLength(), b->meanEdgeLength())});
-      const Eigen::Matrix3Xd& xa = a->surfacePositions();
+      const Eigen::Matrix3Xd& xa = a->surfacePositions(s);
       for (int v : a->vertices()) {
-        const double d = b->distanceTo(xa.col(v), margin, b->surfacePositions());
+        const double d = b->distanceTo(s, xa.col(v), margin, b->surfacePositions(s));
         if (d < margin) {
           Diverged bad;
           bad.step = stepIndex;
@@ -657,45 +678,47 @@ std::optional<Diverged> CollisionPipeline::detect(int stepIndex, double t) {
   return std::nullopt;
 }
 
-void CollisionPipeline::finish() {
-  for (SphereCollisionModel* sp : spheres_) {
-    sp->body().force.setZero();
-    sp->body().torque.setZero();
-    sp->body().contacts = 0;
+void CollisionPipeline::finish(State& st) const {
+  for (const SphereCollisionModel* sp : spheres_) {
+    RigidObject::Live& b = sp->body().live(st);
+    b.force.setZero();
+    b.torque.setZero();
+    b.contacts = 0;
   }
   int total = 0;
-  for (SurfaceCollisionModel* s : surfaces_) {
+  for (const SurfaceCollisionModel* s : surfaces_) {
     if (!s->active()) continue;
-    if (settings_.response == ContactSettings::Response::Penalty) s->finishPenalty(s->mstate().x);
-    for (const Contact& c : s->contacts()) {
+    if (settings_.response == ContactSettings::Response::Penalty) s->finishPenalty(st, s->mstate().x(st));
+    for (const Contact& c : s->contacts(st)) {
       if (c.force.squaredNorm() == 0) continue;
-      RigidObject& b = c.sphere->body();
+      RigidObject::Live& b = c.sphere->body().live(st);
       const Eigen::Vector3d onBody = -c.force;
-      const Eigen::Vector3d at = c.sphere->centre() - c.sphere->radius() * c.n;  // contact point on the sphere
+      const Eigen::Vector3d at = c.sphere->centre(st) - c.sphere->radius() * c.n;  // contact point on the sphere
       b.force += onBody;
       b.torque += (at - b.p).cross(onBody);
       ++b.contacts;
       ++total;
     }
   }
-  maxContacts_ = std::max(maxContacts_, total);
+  Live& l = stateIn<Live>(st);
+  l.maxContacts = std::max(l.maxContacts, total);
   // Penetration of the vertices into the spheres (not the contact distance: the sphere itself).
-  lastPenetration_ = -1e300;
-  for (SurfaceCollisionModel* s : surfaces_) {
-    for (SphereCollisionModel* sp : spheres_) {
-      const Eigen::Vector3d c = sp->centre();
+  l.lastPenetration = -1e300;
+  for (const SurfaceCollisionModel* s : surfaces_) {
+    for (const SphereCollisionModel* sp : spheres_) {
+      const Eigen::Vector3d c = sp->centre(st);
       const double R = sp->radius();
-      for (int v : s->vertices()) lastPenetration_ = std::max(lastPenetration_, R - (s->vertexPosition(v) - c).norm());
+      for (int v : s->vertices()) l.lastPenetration = std::max(l.lastPenetration, R - (s->vertexPosition(st, v) - c).norm());
     }
   }
-  maxPenetration_ = std::max(maxPenetration_, lastPenetration_);
+  l.maxPenetration = std::max(l.maxPenetration, l.lastPenetration);
 }
 
-int CollisionPipeline::contactCount() const {
+int CollisionPipeline::contactCount(const State& st) const {
   int n = 0;
   for (const SurfaceCollisionModel* s : surfaces_)
     if (s->active())
-      for (const Contact& c : s->contacts()) n += c.force.squaredNorm() > 0;
+      for (const Contact& c : s->contacts(st)) n += c.force.squaredNorm() > 0;
   return n;
 }
 

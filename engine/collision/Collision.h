@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/Component.h"
 
 namespace viscera {
@@ -35,8 +35,8 @@ enum class Feature { Face, Edge, Vertex };
 constexpr int kMaxContactNodes = 24;
 
 struct Contact {
-  SphereCollisionModel* sphere = nullptr;
-  SurfaceCollisionModel* surface = nullptr;
+  const SphereCollisionModel* sphere = nullptr;
+  const SurfaceCollisionModel* surface = nullptr;
   Feature feature = Feature::Face;
   int count = 0;                    // nodes used: 3 (face), 2 (edge), 1 (vertex); more through a mapping
   std::array<int, kMaxContactNodes> nodes{};   // nodes of the body the force acts on
@@ -75,7 +75,7 @@ class SphereCollisionModel : public Component {
   double radius() const { return radius_; }
   // SOFA's contactStiffness factor of the model (10 unless given).
   double contactStiffness() const { return attrs().real("contactStiffness"); }
-  Eigen::Vector3d centre() const;
+  Eigen::Vector3d centre(const State& s) const;
 
  private:
   RigidObject* body_ = nullptr;
@@ -103,21 +103,33 @@ class NodeSphereCollisionModel : public Component {
 class SurfaceCollisionModel : public Component, public ForceField, public Stateful {
  public:
   enum class Kind { Points, Lines, Triangles };
+  struct Bvh;
   using Component::Component;
+  ~SurfaceCollisionModel() override;
   void init() override;
-  // The contacts of the last step and their response.
-  void saveState(StateWriter& out) const override;
-  void loadState(StateReader& in) override;
+  // The contacts of the last step and their response; the bounding volumes follow the surface.
+  struct Live : ComponentStateOf<Live> {
+    const SurfaceCollisionModel* model = nullptr;
+    bool penalty = false;
+    std::vector<Contact> contacts;
+    std::shared_ptr<Bvh> bvh;  // this state's own copy (see the copy constructor)
+    Live() = default;
+    Live(const Live& o);
+    Live& operator=(const Live&) = delete;
+    void save(StateWriter& out) const override;
+    void load(StateReader& in) override;
+  };
+  std::unique_ptr<ComponentState> initialState() const override;
 
   Kind kind() const { return kind_; }
   // The body the contact forces act on: the node's MechanicalObject, or, when that is a mapped
   // state (SOFA's collision node under a body), the mapping's input.
   MechanicalObject& mstate() const override { return *state_; }
   // Where the surface is: the node's MechanicalObject (mapped or not).
-  const Eigen::Matrix3Xd& surfacePositions() const;
+  const Eigen::Matrix3Xd& surfacePositions(const State& s) const;
   const MechanicalObject& surfaceState() const { return *surfaceState_; }
-  // Surface vertex v where the body's nodes are now (through the mapping when there is one).
-  Eigen::Vector3d vertexPosition(int v) const;
+  // Surface vertex v where the body's nodes are in `s` (through the mapping when there is one).
+  Eigen::Vector3d vertexPosition(const State& s, int v) const;
   bool actsThroughMapping() const override { return true; }
   const std::vector<std::array<int, 3>>& triangles() const { return tris_; }  // outward (right-hand rule)
   const std::vector<int>& vertices() const { return verts_; }
@@ -128,33 +140,32 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void setActive(bool a) { active_ = a; }
 
   // The smallest distance from p to the surface's triangles (or vertices, for a point model) at
-  // positions x as last fitted, if below `within`; +infinity otherwise.
-  double distanceTo(const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const;
+  // positions x as last fitted in `s`, if below `within`; +infinity otherwise.
+  double distanceTo(const State& s, const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const;
   // Mean length of the surface's edges at rest.
   double meanEdgeLength() const { return meanEdge_; }
-  // Fits the bounding-volume hierarchy to positions x; call before detect() when x changed.
-  void refit(const Eigen::Matrix3Xd& x);
+  // Fits the bounding-volume hierarchy of `s` to positions x; call before detect() when x changed.
+  void refit(State& s, const Eigen::Matrix3Xd& x) const;
   // Contacts with `sphere` for the positions x (the tissue at the step start), as fitted.
-  void detect(SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x, const ContactSettings& s,
-              std::vector<Contact>& out);
+  void detect(const State& s, const SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x,
+              const ContactSettings& settings, std::vector<Contact>& out) const;
   // The contacts of the current step, with the response they get.
-  void setContacts(std::vector<Contact> c, const ContactSettings& s);
-  std::vector<Contact>& contacts() { return contacts_; }
-  const std::vector<Contact>& contacts() const { return contacts_; }
+  void setContacts(State& s, std::vector<Contact> c, const ContactSettings& settings) const;
+  std::vector<Contact>& contacts(State& s) const { return stateIn<Live>(s).contacts; }
+  const std::vector<Contact>& contacts(const State& s) const { return stateIn<Live>(s).contacts; }
 
   // ForceField: penalty forces and their stiffness (nothing for the constraint response).
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override;
-  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const override;
+  void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
-  void addStiffness(BlockSparseMatrix& K, double kFactor) const override;
+  void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
   bool rayleighDamped() const override { return false; }
   // Sets each contact's force from the end-of-step positions (penalty response).
-  void finishPenalty(const Eigen::Matrix3Xd& x);
+  void finishPenalty(State& s, const Eigen::Matrix3Xd& x) const;
 
  private:
-  struct Bvh;
   // One box per primitive (triangle, or vertex for point models) at positions x.
-  void fitBoxes(const Eigen::Matrix3Xd& x);
+  void fitBoxes(const Eigen::Matrix3Xd& x, Bvh& bvh) const;
   // Where the surface comes from: the `topology` link, else the nearest node's topology.
   Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
@@ -172,9 +183,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   std::vector<std::array<int, 3>> triEdges_;       // per triangle: edge ids of (v0v1, v1v2, v2v0)
   std::vector<std::vector<int>> edgeTris_;         // per edge: adjacent triangles
   std::vector<std::vector<int>> vertexNeighbours_; // per node: surface neighbours (empty off the surface)
-  std::shared_ptr<Bvh> bvh_;
-  std::vector<Contact> contacts_;
-  bool penalty_ = false;
+  std::shared_ptr<const Bvh> bvh0_;  // the hierarchy built on the rest surface
 };
 
 // SOFA's MinProximityIntersection / LocalMinDistance: the alarm and contact distances.
@@ -201,38 +210,41 @@ class CollisionPipeline : public Component, public Stateful {
   using Component::Component;
   void init() override;
   // Contact statistics over the run so far.
-  void saveState(StateWriter& out) const override {
-    out.put(lastPenetration_);
-    out.put(maxPenetration_);
-    out.put(maxContacts_);
-  }
-  void loadState(StateReader& in) override {
-    in.get(lastPenetration_);
-    in.get(maxPenetration_);
-    in.get(maxContacts_);
-  }
+  struct Live : ComponentStateOf<Live> {
+    double lastPenetration = -1e300, maxPenetration = -1e300;
+    int maxContacts = 0;
+    void save(StateWriter& out) const override {
+      out.put(lastPenetration);
+      out.put(maxPenetration);
+      out.put(maxContacts);
+    }
+    void load(StateReader& in) override {
+      in.get(lastPenetration);
+      in.get(maxPenetration);
+      in.get(maxContacts);
+    }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
   const ContactSettings& settings() const { return settings_; }
   // Finds this step's contacts (instrument at the step end, tissue at the step start). Fails the
   // step when spheres on two deformable bodies touch (contact between them is not handled).
-  std::optional<Diverged> detect(int stepIndex = 0, double t = 0);
+  std::optional<Diverged> detect(State& s, int stepIndex = 0, double t = 0) const;
   // After the solve: contact forces, the wrench on each instrument, statistics.
-  void finish();
+  void finish(State& s) const;
   const std::vector<SurfaceCollisionModel*>& surfaces() const { return surfaces_; }
   const std::vector<SphereCollisionModel*>& spheres() const { return spheres_; }
-  int contactCount() const;
-  int maxContacts() const { return maxContacts_; }
+  int contactCount(const State& s) const;
+  int maxContacts(const State& s) const { return stateIn<Live>(s).maxContacts; }
   // How far a surface vertex is inside a sphere at the end of the last step (radius minus its
   // distance to the centre; <= 0 when none is inside), and the largest over all steps.
-  double lastPenetration() const { return lastPenetration_; }
-  double maxPenetration() const { return maxPenetration_; }
+  double lastPenetration(const State& s) const { return stateIn<Live>(s).lastPenetration; }
+  double maxPenetration(const State& s) const { return stateIn<Live>(s).maxPenetration; }
 
  private:
   ContactSettings settings_;
-  double lastPenetration_ = -1e300, maxPenetration_ = -1e300;
   std::vector<SphereCollisionModel*> spheres_;
   std::vector<SurfaceCollisionModel*> surfaces_;
   std::vector<NodeSphereCollisionModel*> nodeSpheres_;  // alone in the scene: they may not touch
-  int maxContacts_ = 0;
 };
 
 // Applies the contact constraints after the free motion (FreeMotionAnimationLoop): the role of
@@ -241,9 +253,10 @@ class ConstraintSolver {
  public:
   virtual ~ConstraintSolver() = default;
   // Corrects the states of the bodies in contact; a failure stops the run like a divergence.
-  virtual std::optional<Diverged> solve(CollisionPipeline& pipeline, double dt, int stepIndex, double time) = 0;
-  virtual int lastIterations() const = 0;
-  virtual double lastResidual() const = 0;
+  virtual std::optional<Diverged> solve(State& s, const CollisionPipeline& pipeline, double dt, int stepIndex,
+                                        double time) const = 0;
+  virtual int lastIterations(const State& s) const = 0;
+  virtual double lastResidual(const State& s) const = 0;
 };
 
 }  // namespace viscera

@@ -8,7 +8,9 @@
 //   slip  s = t . (p - p_start) - t . (sphere point displacement over the step)
 // with |lambda_t| <= mu lambda_n, lambda_t opposing the slip while sliding.
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <unordered_map>
 
 #include "engine/MechanicalSystem.h"
@@ -25,7 +27,7 @@ namespace {
 
 // The compliance of one deformable body over a step: C = xFactor A^-1 (or the uncoupled mass-only
 // approximation), with its block columns cached per node.
-class ConstraintCorrection : public Component {
+class ConstraintCorrection : public Component, public Stateful {
  public:
   enum class Mode { Precomputed, LinearSolver, Uncoupled };
   using Component::Component;
@@ -44,66 +46,117 @@ class ConstraintCorrection : public Component {
     if (!r) throw error("the ODE solver in its node has no linear system to correct");
     if (mode_ == Mode::Uncoupled && !(r->mFactor > 0))
       throw error("the uncoupled (mass-only) compliance needs a dynamic solver (EulerImplicitSolver)");
-    respond(scene().dt());
+    if (mode_ != Mode::Uncoupled) sys_->prepareAssembly();
+    // The compliance at rest for the scene's step, factorised once and shared by every simulation.
+    if (mode_ == Mode::Precomputed) {
+      restDt_ = scene().dt();
+      rest_ = std::make_shared<CholmodSolver>();
+      factorizeAt(sys_->state().x0, *r, *rest_);
+    }
   }
 
   MechanicalObject& mstate() const { return sys_->state(); }
 
+  // Per simulation: the step response, the step matrix and its factorisation when the compliance
+  // follows the state (or another step size than the shared one), and cached columns of C. All of
+  // it is rebuilt as the simulation steps, so none of it is saved.
+  struct Live : ComponentStateOf<Live> {
+    StepResponse resp;
+    double respDt = 0;
+    bool own = false;  // the factorisation is this state's (else the shared one at rest)
+    BlockSparseMatrix A;
+    Scratch<CholmodSolver> chol;
+    std::unordered_map<int, Eigen::MatrixX3d> columns;
+    void save(StateWriter&) const override {}
+    void load(StateReader&) override {}
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
+
   // Called once per step of size h before the solve: refactors when the compliance follows the
-  // state, or when the step size changed since the precomputation.
-  void prepare(double h) {
-    if (h != respDt_) respond(h);
-    if (mode_ == Mode::LinearSolver) {
-      factorize(sys_->state().x);
-      columns_.clear();
+  // state, or when the step size differs from the precomputed one.
+  Live& prepare(State& st, double h) const {
+    Live& l = stateIn<Live>(st);
+    if (h != l.respDt) {
+      auto r = ode_->stepResponse(h);
+      if (!r) throw error("the ODE solver in its node has no linear system to correct");
+      l.resp = *r;
+      l.respDt = h;
+      l.columns.clear();
+      l.own = false;
+      if (mode_ == Mode::Precomputed && h != restDt_) {
+        factorizeAt(sys_->state().x0, l.resp, l.chol.get());
+        l.own = true;
+      }
     }
+    if (mode_ == Mode::LinearSolver) {
+      factorizeAt(st, sys_->state().x(st), l.resp, l.A, l.chol.get());
+      l.own = true;
+      l.columns.clear();
+    }
+    return l;
   }
 
   // The 3x3 block C(u, v).
-  Eigen::Matrix3d block(int u, int v) {
-    if (mode_ == Mode::Uncoupled) return u == v ? uncoupled(u) : Eigen::Matrix3d::Zero();
-    const Eigen::MatrixX3d& col = column(v);
+  Eigen::Matrix3d block(Live& l, int u, int v) const {
+    if (mode_ == Mode::Uncoupled) return u == v ? uncoupled(l, u) : Eigen::Matrix3d::Zero();
+    const Eigen::MatrixX3d& col = column(l, v);
     return col.middleRows<3>(3 * u);
   }
 
   // dx = C F for forces F on the nodes (non-zero on the few contact nodes: a sum of their cached
   // columns, cheaper than a solve).
-  void apply(const Eigen::Matrix3Xd& F, Eigen::Matrix3Xd& dx) {
+  void apply(Live& l, const Eigen::Matrix3Xd& F, Eigen::Matrix3Xd& dx) const {
     const int n = F.cols();
     dx.setZero(3, n);
     Eigen::Map<Eigen::VectorXd> d(dx.data(), 3 * n);
     for (int i = 0; i < n; ++i) {
       if (F.col(i).isZero()) continue;
-      if (mode_ == Mode::Uncoupled) dx.col(i) = uncoupled(i) * F.col(i);
-      else d.noalias() += column(i) * F.col(i);
+      if (mode_ == Mode::Uncoupled) dx.col(i) = uncoupled(l, i) * F.col(i);
+      else d.noalias() += column(l, i) * F.col(i);
     }
   }
 
-  const StepResponse& response() const { return resp_; }
-
  private:
-  Eigen::Matrix3d uncoupled(int u) const {
+  Eigen::Matrix3d uncoupled(const Live& l, int u) const {
     const double m = sys_->nodeMass()[u];
-    return sys_->projector(u) * (resp_.xFactor / (resp_.mFactor * m));
+    return sys_->projector(u) * (l.resp.xFactor / (l.resp.mFactor * m));
   }
 
-  void factorize(const Eigen::Matrix3Xd& x) {
+  // Factorises the step matrix A = mFactor M + kFactor K with the force fields linearised at x
+  // (in state `st`, whose force-field blocks it overwrites).
+  void factorizeAt(State& st, const Eigen::Matrix3Xd& x, const StepResponse& r, BlockSparseMatrix& A,
+                   CholmodSolver& chol) const {
     const int n = sys_->nodes();
     Eigen::Matrix3Xd f;
-    sys_->computeForce(x, Eigen::Matrix3Xd::Zero(3, n), f);  // linearise the force fields at x
-    sys_->assembleStiffness(A_);
-    A_.scale(resp_.kFactor);
-    if (resp_.mFactor != 0) sys_->addMass(A_, resp_.mFactor);
-    sys_->constrain(A_);
+    sys_->computeForce(st, x, Eigen::Matrix3Xd::Zero(3, n), f);  // linearise the force fields at x
+    sys_->assembleStiffness(st, A);
+    A.scale(r.kFactor);
+    if (r.mFactor != 0) sys_->addMass(A, r.mFactor);
+    sys_->constrain(A);
     std::string msg;
-    if (!chol_.factorize(A_, msg)) throw error("cannot factorize the body's step matrix for the contact compliance: " + msg);
+    if (!chol.factorize(A, msg)) throw error("cannot factorize the body's step matrix for the contact compliance: " + msg);
+  }
+  // The same at rest, in a scratch state of the model's initial values.
+  void factorizeAt(const Eigen::Matrix3Xd& x, const StepResponse& r, CholmodSolver& chol) const {
+    // Only the body's force fields (initialised by now) get a block: the rest are not read.
+    State rest;
+    const auto& forces = sys_->forceFields();
+    std::vector<Stateful*> stateful = scene().all<Stateful>();
+    for (size_t i = 0; i < stateful.size(); ++i) {
+      if (stateful[i]->stateSlot() < 0) stateful[i]->setStateSlot(static_cast<int>(i));
+      auto* f = dynamic_cast<ForceField*>(stateful[i]);
+      const bool used = f && std::find(forces.begin(), forces.end(), f) != forces.end();
+      rest.add("", used ? stateful[i]->initialState() : nullptr);
+    }
+    BlockSparseMatrix A;
+    factorizeAt(rest, x, r, A, chol);
   }
 
-  const Eigen::MatrixX3d& column(int v) {
-    auto it = columns_.find(v);
-    if (it != columns_.end()) return it->second;
+  const Eigen::MatrixX3d& column(Live& l, int v) const {
+    auto it = l.columns.find(v);
+    if (it != l.columns.end()) return it->second;
     // Bound the cache (each column is 3 x 3n doubles).
-    if (columns_.size() * 9.0 * sys_->nodes() * 8 > 256e6) columns_.clear();
+    if (l.columns.size() * 9.0 * sys_->nodes() * 8 > 256e6) l.columns.clear();
     const int n3 = 3 * sys_->nodes();
     Eigen::MatrixX3d col(n3, 3);
     Eigen::VectorXd e = Eigen::VectorXd::Zero(n3), x;
@@ -112,48 +165,45 @@ class ConstraintCorrection : public Component {
     for (int k = 0; k < 3; ++k) {
       e.setZero();
       e.segment<3>(3 * v) = Pv.col(k);
-      chol_.solve(e, x);
-      col.col(k) = x * resp_.xFactor;
+      if (l.own) {
+        l.chol->solve(e, x);
+      } else {
+        // The shared factorisation's solves take turns (CHOLMOD's workspace is the solver's).
+        std::lock_guard<std::mutex> lock(restMutex_);
+        rest_->solve(e, x);
+      }
+      col.col(k) = x * l.resp.xFactor;
     }
     for (int f : sys_->fixedNodes()) col.middleRows<3>(3 * f).setZero();
     for (const auto& [i, P] : sys_->partialNodes()) col.middleRows<3>(3 * i) = P * col.middleRows<3>(3 * i);
-    return columns_.emplace(v, std::move(col)).first->second;
-  }
-
-  // The step response for steps of size h (and the precomputed compliance for it).
-  void respond(double h) {
-    auto r = ode_->stepResponse(h);
-    if (!r) throw error("the ODE solver in its node has no linear system to correct");
-    resp_ = *r;
-    respDt_ = h;
-    if (mode_ == Mode::Precomputed) {
-      factorize(sys_->state().x0);
-      columns_.clear();
-    }
+    return l.columns.emplace(v, std::move(col)).first->second;
   }
 
   Mode mode_ = Mode::Precomputed;
   std::unique_ptr<MechanicalSystem> sys_;
   OdeSolver* ode_ = nullptr;
-  StepResponse resp_;
-  double respDt_ = 0;
-  BlockSparseMatrix A_;
-  CholmodSolver chol_;
-  std::unordered_map<int, Eigen::MatrixX3d> columns_;
+  double restDt_ = 0;
+  std::shared_ptr<CholmodSolver> rest_;  // the step matrix at rest for restDt_, factorised
+  mutable std::mutex restMutex_;
 };
 
 class GenericConstraintSolver : public Component, public ConstraintSolver, public Stateful {
  public:
   using Component::Component;
   // Each step starts from zero impulses: only the last step's statistics carry over.
-  void saveState(StateWriter& out) const override {
-    out.put(iterations_);
-    out.put(residual_);
-  }
-  void loadState(StateReader& in) override {
-    in.get(iterations_);
-    in.get(residual_);
-  }
+  struct Live : ComponentStateOf<Live> {
+    int iterations = 0;
+    double residual = 0;
+    void save(StateWriter& out) const override {
+      out.put(iterations);
+      out.put(residual);
+    }
+    void load(StateReader& in) override {
+      in.get(iterations);
+      in.get(residual);
+    }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
   void init() override {
     maxIt_ = static_cast<int>(attrs_.integer("maxIterations"));
     tol_ = attrs_.real("tolerance");
@@ -166,23 +216,25 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     }
   }
 
-  std::optional<Diverged> solve(CollisionPipeline& pipe, double h, int stepIndex, double time) override {
-    iterations_ = 0;
-    residual_ = 0;
+  std::optional<Diverged> solve(State& st, const CollisionPipeline& pipe, double h, int stepIndex,
+                                double time) const override {
+    Live& l = stateIn<Live>(st);
+    l.iterations = 0;
+    l.residual = 0;
     if (pipe.settings().response != ContactSettings::Response::Constraint) return std::nullopt;
     const double mu = muOverride_ >= 0 ? muOverride_ : pipe.settings().mu;
-    for (SurfaceCollisionModel* surf : pipe.surfaces()) {
-      if (!surf->active() || surf->contacts().empty()) continue;
-      ConstraintCorrection* cc = correctionFor(surf->mstate());
+    for (const SurfaceCollisionModel* surf : pipe.surfaces()) {
+      if (!surf->active() || surf->contacts(st).empty()) continue;
+      const ConstraintCorrection* cc = correctionFor(surf->mstate());
       if (!cc) throw surf->error("constraint contact needs a constraint correction in the node of '" + surf->mstate().name() +
                                  "' (PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or "
                                  "UncoupledConstraintCorrection)");
-      if (auto bad = solveBody(*surf, *cc, mu, h, stepIndex, time)) return bad;
+      if (auto bad = solveBody(st, *surf, *cc, mu, h, stepIndex, time)) return bad;
     }
     return std::nullopt;
   }
-  int lastIterations() const override { return iterations_; }
-  double lastResidual() const override { return residual_; }
+  int lastIterations(const State& s) const override { return stateIn<Live>(s).iterations; }
+  double lastResidual(const State& s) const override { return stateIn<Live>(s).residual; }
 
  private:
   bool hasAnimationLoop() const {
@@ -196,12 +248,14 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     return nullptr;
   }
 
-  std::optional<Diverged> solveBody(SurfaceCollisionModel& surf, ConstraintCorrection& cc, double mu, double h,
-                                    int stepIndex, double time) {
-    MechanicalObject& s = surf.mstate();
-    std::vector<Contact>& cs = surf.contacts();
+  std::optional<Diverged> solveBody(State& st, const SurfaceCollisionModel& surf, const ConstraintCorrection& cc,
+                                    double mu, double h, int stepIndex, double time) const {
+    Live& l = stateIn<Live>(st);
+    const MechanicalObject& body = surf.mstate();
+    MechanicalObject::Live& s = body.live(st);
+    std::vector<Contact>& cs = surf.contacts(st);
     const int m = static_cast<int>(cs.size());
-    cc.prepare(h);
+    ConstraintCorrection::Live& ccl = cc.prepare(st, h);
     // Rows R_i = [-n^T; t1^T; t2^T] acting on the contact point.
     std::vector<Eigen::Matrix3d> R(m);
     std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());
@@ -212,8 +266,8 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       R[i].row(1) = t1.transpose();
       R[i].row(2) = t2.transpose();
       const Eigen::Vector3d p = c.point(s.x);
-      const Eigen::Vector3d at = c.sphere->centre() - c.sphere->radius() * c.n;
-      const Eigen::Vector3d slip = (p - c.p0) - h * c.sphere->body().pointVelocity(at);
+      const Eigen::Vector3d at = c.sphere->centre(st) - c.sphere->radius() * c.n;
+      const Eigen::Vector3d slip = (p - c.p0) - h * c.sphere->body().live(st).pointVelocity(at);
       dfree[i] = Eigen::Vector3d(c.gap(s.x), t1.dot(slip), t2.dot(slip));
     }
     // Delassus blocks W_ij = R_i (sum_a sum_b w_a w_b C(a, b)) R_j^T. C(a, b) comes from node b's
@@ -225,7 +279,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       for (int i = 0; i < m; ++i) {
         Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
         for (int a = 0; a < cs[i].count; ++a)
-          for (int b = 0; b < cs[j].count; ++b) Cij += cs[i].w[a] * cs[j].w[b] * cc.block(cs[i].nodes[a], cs[j].nodes[b]);
+          for (int b = 0; b < cs[j].count; ++b) Cij += cs[i].w[a] * cs[j].w[b] * cc.block(ccl, cs[i].nodes[a], cs[j].nodes[b]);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
     // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by
@@ -249,22 +303,22 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         scale = std::max(scale, l.norm());
         lambda[i] = l;
       }
-      iterations_ = it + 1;
-      residual_ = change / scale;
-      if (residual_ <= tol_) break;
+      l.iterations = it + 1;
+      l.residual = change / scale;
+      if (l.residual <= tol_) break;
     }
     // Correct the free motion: forces on the nodes, displacement C F, velocity to match.
-    Eigen::Matrix3Xd F = Eigen::Matrix3Xd::Zero(3, s.size()), dx;
+    Eigen::Matrix3Xd F = Eigen::Matrix3Xd::Zero(3, body.size()), dx;
     for (int i = 0; i < m; ++i) {
       Contact& c = cs[i];
       c.force = R[i].transpose() * lambda[i];
       c.active = lambda[i][0] > 0;
       for (int a = 0; a < c.count; ++a) F.col(c.nodes[a]) += c.w[a] * c.force;
     }
-    cc.apply(F, dx);
+    cc.apply(ccl, F, dx);
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     s.x += dx;
-    const StepResponse& r = cc.response();
+    const StepResponse& r = ccl.resp;
     if (r.vFactor != 0) s.v += dx * (r.vFactor / r.xFactor);
     if (!s.x.allFinite() || !s.v.allFinite()) {
       s.x = x0;
@@ -273,7 +327,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       d.step = stepIndex;
       d.time = time;
       d.reason = "constraint solver produced non-finite forces";
-      d.object = s.name();
+      d.object = body.name();
       return d;
     }
     return std::nullopt;
@@ -282,8 +336,6 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   int maxIt_ = 1000;
   double tol_ = 1e-8;
   double muOverride_ = -1;
-  int iterations_ = 0;
-  double residual_ = 0;
   std::vector<ConstraintCorrection*> corrections_;
 };
 

@@ -50,7 +50,7 @@ class VTKExporter : public Component, public Observer {
       fields_.push_back(f);
     }
   }
-  void begin(double t) override {
+  void begin(const State& s, double t) override {
     // Unnamed, a surface exporter takes the visual model's name so that it does not share its
     // .pvd with the body's exporter.
     const std::string fallback = visual_ ? visual_->name() : name();
@@ -62,19 +62,19 @@ class VTKExporter : public Component, public Observer {
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
-    if (attrs_.boolean("exportAtBegin")) write(t, 0, current());
-    else keep(t, 0);
+    if (attrs_.boolean("exportAtBegin")) write(t, 0, current(s));
+    else keep(s, 0);
   }
-  void observe(double t, int step) override {
-    if (every_ > 0 && step % every_ == 0) write(t, step, current());
-    else keep(t, step);
+  void observe(const State& s, double t, int step) override {
+    if (every_ > 0 && step % every_ == 0) write(t, step, current(s));
+    else keep(s, step);
   }
-  void diverged(double t, int step) override {
+  void diverged(const State&, double t, int step) override {
     // The state now holds the failed step: the last good one is written from its copy.
     if (lastStep_ != step && kept_.step == step) write(t, step, kept_);
   }
-  void end(double t, int step) override {
-    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step, current());
+  void end(const State& s, double t, int step) override {
+    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step, current(s));
   }
 
  private:
@@ -83,19 +83,19 @@ class VTKExporter : public Component, public Observer {
     int step = -1;
     Eigen::Matrix3Xd x, v, f;
   };
-  Frame current() const {
+  Frame current(const State& s) const {
     Frame fr;
-    fr.x = visual_ ? visual_->x : state_->x;
-    if (!visual_) fr.v = state_->v, fr.f = state_->f;
+    fr.x = visual_ ? visual_->x(s) : state_->x(s);
+    if (!visual_) fr.v = state_->v(s), fr.f = state_->live(s).f;
     return fr;
   }
   // A step not written is kept, so that a divergence on the next one can still export it
   // (a copy of the node's arrays a step: small beside the step itself).
-  void keep(double, int step) {
+  void keep(const State& s, int step) {
     if (every_ == 1) return;
     // Assigned in place: same sizes every step, so no allocation after the first.
-    kept_.x = visual_ ? visual_->x : state_->x;
-    if (!visual_) kept_.v = state_->v, kept_.f = state_->f;
+    kept_.x = visual_ ? visual_->x(s) : state_->x(s);
+    if (!visual_) kept_.v = state_->v(s), kept_.f = state_->live(s).f;
     kept_.step = step;
   }
 

@@ -21,7 +21,7 @@
 #include "engine/mechanics/ElementMass.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "engine/fem/TetKernel.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
@@ -125,7 +125,6 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     const double nu = attrs_.real("poissonRatio");
     K0_.resize(hexa_.size());
     rest_.resize(hexa_.size());
-    Q_.assign(hexa_.size(), Eigen::Matrix3d::Identity());
     for (size_t e = 0; e < hexa_.size(); ++e) {
       rest_[e] = gather(state_->x0, e);
       if ((rest_[e] * shapeGradients(Eigen::Vector3d::Zero())).determinant() <= 0)
@@ -136,28 +135,39 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     }
   }
   MechanicalObject& mstate() const override { return *state_; }
-  void saveState(StateWriter& out) const override { out.put(Q_); }
-  void loadState(StateReader& in) override {
-    std::vector<Eigen::Matrix3d> q;
-    in.get(q);
-    if (q.size() != Q_.size()) in.mismatch(std::to_string(q.size()) + " element rotations where this force field has " + std::to_string(Q_.size()));
-    Q_ = std::move(q);
+  // The rest -> current rotation of each element at the last addForce.
+  struct Live : ComponentStateOf<Live> {
+    std::vector<Eigen::Matrix3d> Q;
+    void save(StateWriter& out) const override { out.put(Q); }
+    void load(StateReader& in) override {
+      std::vector<Eigen::Matrix3d> q;
+      in.get(q);
+      if (q.size() != Q.size()) in.mismatch(std::to_string(q.size()) + " element rotations where this force field has " + std::to_string(Q.size()));
+      Q = std::move(q);
+    }
+  };
+  std::unique_ptr<ComponentState> initialState() const override {
+    auto l = std::make_unique<Live>();
+    l->Q.assign(hexa_.size(), Eigen::Matrix3d::Identity());
+    return l;
   }
 
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {
+    std::vector<Eigen::Matrix3d>& Q = stateIn<Live>(s).Q;
     for (size_t e = 0; e < hexa_.size(); ++e) {
       const Nodes8 p = gather(x, e);
-      Q_[e] = rotation(e, p);
-      Nodes8 u = Q_[e].transpose() * p - rest_[e];
+      Q[e] = rotation(e, p);
+      Nodes8 u = Q[e].transpose() * p - rest_[e];
       const Eigen::Matrix<double, 24, 1> fe = -K0_[e] * Eigen::Map<const Eigen::Matrix<double, 24, 1>>(u.data());
-      for (int k = 0; k < 8; ++k) f.col(hexa_[e][k]) += Q_[e] * fe.segment<3>(3 * k);
+      for (int k = 0; k < 8; ++k) f.col(hexa_[e][k]) += Q[e] * fe.segment<3>(3 * k);
     }
   }
-  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+  void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+    const std::vector<Eigen::Matrix3d>& Q = stateIn<Live>(s).Q;
     for (size_t e = 0; e < hexa_.size(); ++e) {
-      Nodes8 d = Q_[e].transpose() * gather(dx, e);
+      Nodes8 d = Q[e].transpose() * gather(dx, e);
       const Eigen::Matrix<double, 24, 1> fe = -kFactor * (K0_[e] * Eigen::Map<const Eigen::Matrix<double, 24, 1>>(d.data()));
-      for (int k = 0; k < 8; ++k) df.col(hexa_[e][k]) += Q_[e] * fe.segment<3>(3 * k);
+      for (int k = 0; k < 8; ++k) df.col(hexa_[e][k]) += Q[e] * fe.segment<3>(3 * k);
     }
   }
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override {
@@ -171,11 +181,12 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
       for (int i = 0; i < 8; ++i)
         for (int j = 0; j < 8; ++j) slots_[e][8 * i + j] = K.slot(hexa_[e][i], hexa_[e][j]);
   }
-  void addStiffness(BlockSparseMatrix& K, double kFactor) const override {
+  void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override {
+    const std::vector<Eigen::Matrix3d>& Q = stateIn<Live>(s).Q;
     for (size_t e = 0; e < hexa_.size(); ++e)
       for (int i = 0; i < 8; ++i)
         for (int j = 0; j < 8; ++j)
-          K.block(slots_[e][8 * i + j]) -= kFactor * Q_[e] * K0_[e].block<3, 3>(3 * i, 3 * j) * Q_[e].transpose();
+          K.block(slots_[e][8 * i + j]) -= kFactor * Q[e] * K0_[e].block<3, 3>(3 * i, 3 * j) * Q[e].transpose();
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
     double w = 0;
@@ -221,7 +232,6 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
   std::vector<Mat24, Eigen::aligned_allocator<Mat24>> K0_;
   std::vector<Nodes8, Eigen::aligned_allocator<Nodes8>> rest_;
   std::vector<Eigen::Matrix3d> restFrame_;
-  std::vector<Eigen::Matrix3d> Q_;  // rest -> current rotation of each element at the last addForce
   std::vector<std::array<int, 64>> slots_;
 };
 
@@ -245,8 +255,8 @@ class HexahedronFEMAndMass : public HexahedronFEM, public Mass {
     consistent_ = !attrs_.boolean("lumpedMass");
   }
   MechanicalObject& mstate() const override { return *state_; }
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override {
-    HexahedronFEM::addForce(x, v, f);
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const override {
+    HexahedronFEM::addForce(s, x, v, f);
     addGravity(m_, scene().gravity(), f);
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override {

@@ -40,7 +40,7 @@ void TetrahedronFEMForceField::init() {
     throw error("youngModulus", "expected one value or one per tetrahedron (" + std::to_string(tets_.cols()) + "), got " +
                                     std::to_string(E.size()));
   rest_.resize(tets_.cols());
-  rot_.assign(tets_.cols(), Eigen::Matrix3d::Identity());
+  rot0_.assign(tets_.cols(), Eigen::Matrix3d::Identity());
   for (int e = 0; e < tets_.cols(); ++e) {
     const Mat34 X = gather(state_->x0, e);
     try {
@@ -48,7 +48,7 @@ void TetrahedronFEMForceField::init() {
     } catch (const std::domain_error&) {
       throw error("tetrahedron " + std::to_string(e) + " is degenerate (zero volume)");
     }
-    rot_[e] = fem::frame(method_, X);
+    rot0_[e] = fem::frame(method_, X);
   }
   colors_ = *io::cachedDerived<std::vector<std::vector<int>>>("element colouring", io::keyBytes(tets_) + std::to_string(n),
                                                               [&] { return colorElements(tets_, n); });
@@ -60,31 +60,53 @@ Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {
   return p;
 }
 
-void TetrahedronFEMForceField::addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) {
-  if (exact_) xLast_ = x;
+std::unique_ptr<ComponentState> TetrahedronFEMForceField::initialState() const {
+  auto l = std::make_unique<Live>();
+  l->rot = rot0_;
+  return l;
+}
+
+void TetrahedronFEMForceField::Live::load(StateReader& in) {
+  std::vector<Eigen::Matrix3d> r;
+  Eigen::Matrix3Xd xl;
+  in.get(r);
+  in.get(xl);
+  if (r.size() != rot.size())
+    in.mismatch(std::to_string(r.size()) + " element frames where this force field has " + std::to_string(rot.size()));
+  rot = std::move(r);
+  xLast = std::move(xl);
+}
+
+void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&,
+                                        Eigen::Matrix3Xd& f) const {
+  Live& l = live(s);
+  if (exact_) l.xLast = x;
+  std::vector<Eigen::Matrix3d>& rot = l.rot;
   forEachColored(colors_, [&](int e) {
     const Mat34 xe = gather(x, e);
     Mat34 fe;
     if (svd_) {
-      rot_[e] = fem::frameSvd(rest_[e], xe);
-      fe = fem::elementForceInFrame(rest_[e], xe, rot_[e]);
+      rot[e] = fem::frameSvd(rest_[e], xe);
+      fe = fem::elementForceInFrame(rest_[e], xe, rot[e]);
     } else {
-      fe = fem::elementForce(method_, rest_[e], xe, rot_[e]);
+      fe = fem::elementForce(method_, rest_[e], xe, rot[e]);
     }
     for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
   });
 }
 
-Mat12 TetrahedronFEMForceField::stiffnessOf(int e) const {
-  if (exact_ && method_ != fem::Method::Small) return fem::elementTangent(method_, rest_[e], gather(xLast_, e));
-  return fem::elementStiffness(method_, rest_[e], rot_[e]);
+Mat12 TetrahedronFEMForceField::stiffnessOf(const Live& l, int e) const {
+  if (exact_ && method_ != fem::Method::Small) return fem::elementTangent(method_, rest_[e], gather(l.xLast, e));
+  return fem::elementStiffness(method_, rest_[e], l.rot[e]);
 }
 
-void TetrahedronFEMForceField::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {
+void TetrahedronFEMForceField::addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df,
+                                         double kFactor) const {
+  const Live& l = live(s);
   if (exact_ && method_ != fem::Method::Small) {
     forEachColored(colors_, [&](int e) {
       const Mat34 d = gather(dx, e);
-      Eigen::Matrix<double, 12, 1> r = stiffnessOf(e) * Eigen::Map<const Eigen::Matrix<double, 12, 1>>(d.data());
+      Eigen::Matrix<double, 12, 1> r = stiffnessOf(l, e) * Eigen::Map<const Eigen::Matrix<double, 12, 1>>(d.data());
       for (int k = 0; k < 4; ++k) df.col(tets_(k, e)) += kFactor * r.segment<3>(3 * k);
     });
     return;
@@ -92,7 +114,7 @@ void TetrahedronFEMForceField::addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matr
   // K dx per element without forming K: with h = R^T G and M = h dX^T, (K dx)_i = -V sigma(M) h_i.
   forEachColored(colors_, [&](int e) {
     const fem::ElementRest& r = rest_[e];
-    const Mat34 h = rot_[e].transpose() * r.G;
+    const Mat34 h = l.rot[e].transpose() * r.G;
     const Mat34 d = gather(dx, e);
     const Eigen::Matrix3d M = h * d.transpose();
     const Mat34 out = (-kFactor * r.volume) * (r.lame.stress(M) * h);
@@ -113,11 +135,12 @@ void TetrahedronFEMForceField::prepareAssembly(const BlockSparseMatrix& K) {
       for (int j = 0; j < 4; ++j) slots_[e][4 * i + j] = K.slot(tets_(i, e), tets_(j, e));
 }
 
-void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor) const {
+void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
   if (slots_.size() != static_cast<size_t>(tets_.cols())) throw std::logic_error("addStiffness before prepareAssembly");
+  const Live& l = live(s);
   forEachColored(colors_, [&](int e) {
     if (exact_ && method_ != fem::Method::Small) {
-      const Mat12 Ke = stiffnessOf(e);
+      const Mat12 Ke = stiffnessOf(l, e);
       for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j) K.block(slots_[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
       return;
@@ -126,7 +149,7 @@ void TetrahedronFEMForceField::addStiffness(BlockSparseMatrix& K, double kFactor
     // written out: this loop is a third of a step):
     //   B(r, c) = a (lambda h_i[r] h_j[c] + mu h_j[r] h_i[c] + mu (g_i . g_j) delta_rc).
     const fem::ElementRest& r = rest_[e];
-    const Mat34 h = rot_[e].transpose() * r.G;
+    const Mat34 h = l.rot[e].transpose() * r.G;
     const double a = -kFactor * r.volume, la = a * r.lame.lambda, ma = a * r.lame.mu;
     double* values = K.values();
     const auto& slot = slots_[e];
@@ -154,22 +177,6 @@ double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) cons
   double s = 0;
   for (int e = 0; e < tets_.cols(); ++e) s += fem::elementEnergy(method_, rest_[e], gather(x, e));
   return s;
-}
-
-void TetrahedronFEMForceField::saveState(StateWriter& out) const {
-  out.put(rot_);
-  out.put(xLast_);
-}
-
-void TetrahedronFEMForceField::loadState(StateReader& in) {
-  std::vector<Eigen::Matrix3d> rot;
-  Eigen::Matrix3Xd xLast;
-  in.get(rot);
-  in.get(xLast);
-  if (rot.size() != rot_.size())
-    in.mismatch(std::to_string(rot.size()) + " element frames where this force field has " + std::to_string(rot_.size()));
-  rot_ = std::move(rot);
-  xLast_ = std::move(xLast);
 }
 
 std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3Xd& x) const {

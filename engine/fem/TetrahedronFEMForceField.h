@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/Component.h"
 #include "engine/fem/TetKernel.h"
 
@@ -19,14 +19,22 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   void init() override;
   MechanicalObject& mstate() const override { return *state_; }
   // The element frames and positions of the last linearisation (addDForce and addStiffness use them).
-  void saveState(StateWriter& out) const override;
-  void loadState(StateReader& in) override;
+  struct Live : ComponentStateOf<Live> {
+    std::vector<Eigen::Matrix3d> rot;  // frame of each element at the last addForce
+    Eigen::Matrix3Xd xLast;            // positions of the last addForce (exact tangent)
+    void save(StateWriter& out) const override {
+      out.put(rot);
+      out.put(xLast);
+    }
+    void load(StateReader& in) override;
+  };
+  std::unique_ptr<ComponentState> initialState() const override;
 
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override;
-  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const override;
+  void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void prepareAssembly(const BlockSparseMatrix& K) override;
-  void addStiffness(BlockSparseMatrix& K, double kFactor) const override;
+  void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override;
   std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const override;
 
@@ -40,7 +48,9 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
 
  private:
   fem::Mat34 gather(const Eigen::Matrix3Xd& x, int e) const;
-  fem::Mat12 stiffnessOf(int e) const;
+  fem::Mat12 stiffnessOf(const Live& l, int e) const;
+  Live& live(State& s) const { return stateIn<Live>(s); }
+  const Live& live(const State& s) const { return stateIn<Live>(s); }
 
   MechanicalObject* state_ = nullptr;
   fem::Method method_ = fem::Method::Large;
@@ -48,8 +58,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   bool exact_ = false;
   TetList tets_;
   std::vector<fem::ElementRest> rest_;
-  std::vector<Eigen::Matrix3d> rot_;       // frame of each element at the last addForce
-  Eigen::Matrix3Xd xLast_;                 // positions of the last addForce (exact tangent)
+  std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest
   std::vector<std::vector<int>> colors_;
   std::vector<std::array<int, 16>> slots_; // block slots of each element in the assembled matrix
 };

@@ -65,9 +65,9 @@ struct LinkTarget {
 // mapped too.
 struct MappedPoints {
   Component* component = nullptr;
-  Eigen::Matrix3Xd* x = nullptr;
-  Eigen::Matrix3Xd* v = nullptr;  // null for a visual model
-  Eigen::Matrix3Xd initial;       // the points where the mapping is set up
+  const VisualModel* visual = nullptr;     // a visual surface, or
+  const MechanicalObject* state = nullptr;  // a mapped state (positions and velocities)
+  Eigen::Matrix3Xd initial;                // the points where the mapping is set up
   int size() const { return static_cast<int>(initial.cols()); }
   const std::string& name() const { return component->name(); }
 };
@@ -88,9 +88,13 @@ class PointMapping : public Component, public Mapping {
 
   // Writes map(input positions) and, for a MechanicalObject, map(input velocities).
   template <class Map>
-  void write(const Map& map) {
-    map(input_->x, *output_.x);
-    if (output_.v) map(input_->v, *output_.v);
+  void write(State& s, const Map& map) const {
+    if (output_.visual) {
+      map(input_->x(s), output_.visual->x(s));
+      return;
+    }
+    map(input_->x(s), output_.state->x(s));
+    map(input_->v(s), output_.state->v(s));
   }
 
   MechanicalObject* input_ = nullptr;
@@ -151,7 +155,7 @@ class PointMapping : public Component, public Mapping {
     p.component = out;
     if (auto* v = dynamic_cast<VisualModel*>(out)) {
       v->setDriver(*this);
-      p.x = &v->x;
+      p.visual = v;
       p.initial = v->x0;
     } else if (auto* m = dynamic_cast<MechanicalObject*>(out)) {
       if (m == input_) throw error("output", "is the input itself");
@@ -160,9 +164,8 @@ class PointMapping : public Component, public Mapping {
                                   dynamic_cast<Component&>(*solver).typeName() + " in its node; a mapped state must be "
                                   "in a node without an ODE solver");
       m->setMappedBy(*this);
-      p.x = &m->x;
-      p.v = &m->v;
-      p.initial = m->x;
+      p.state = m;
+      p.initial = m->xInit;
     } else {
       throw error("output", "'" + out->name() + "' (" + out->typeName() +
                                 ") is neither a visual model (OglModel/VisualModel) nor a MechanicalObject (Vec3d)");
@@ -195,7 +198,7 @@ class BarycentricMapping : public PointMapping {
     const bool gridGeometry = grid && grid->points().cols() == input_->size();
     const Eigen::Matrix3Xd& nodes = gridGeometry                        ? grid->points()
                                     : attrs_.boolean("useRestPosition") ? input_->x0
-                                                                        : input_->x;
+                                                                        : input_->xInit;
     const double reach = attrs_.isSet("maxDistance") ? attrs_.real("maxDistance")
                          : tets                      ? meanEdgeLength(nodes, *tets)
                                                      : meanHexahedronEdge(nodes, *hexa);
@@ -241,9 +244,9 @@ class BarycentricMapping : public PointMapping {
     }
   }
 
-  void apply() override {
-    if (hexa_) write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(hexEmbedding_, in, out); });
-    else write([this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
+  void apply(State& s) const override {
+    if (hexa_) write(s, [this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(hexEmbedding_, in, out); });
+    else write(s, [this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { applyEmbedding(embedding_, in, out); });
   }
   bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const override {
     out.clear();
@@ -289,8 +292,8 @@ class IdentityMapping : public PointMapping {
                                 " nodes; IdentityMapping needs as many (BarycentricMapping embeds a different surface)");
   }
 
-  void apply() override {
-    write([](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { out = in; });
+  void apply(State& s) const override {
+    write(s, [](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) { out = in; });
   }
   bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const override {
     out.assign(1, {p, 1.0});

@@ -50,7 +50,6 @@ void VisualModel::init() {
   else fromContextBoundary();
   if (x0.cols() == 0) throw error("has no vertices");
   applyPlacement(attrs_, x0);
-  x = x0;
 }
 
 void VisualModel::fromFile() {
@@ -104,7 +103,7 @@ void VisualModel::fromContextBoundary() {
 }
 
 bool VisualModel::field(const std::string& name, FieldValue& out) const {
-  if (name == "position") out.values.assign(x.data(), x.data() + x.size());
+  if (name == "position") out.values.assign(x0.data(), x0.data() + x0.size());
   else if (name == "restPosition") out.values.assign(x0.data(), x0.data() + x0.size());
   else if (name == "triangles") out.values.assign(triangles.data(), triangles.data() + triangles.size());
   else return false;

@@ -6,13 +6,14 @@
 #include <Eigen/Core>
 
 #include "core/Component.h"
+#include "core/State.h"
 #include "engine/mapping/Embedding.h"
 
 namespace viscera {
 
 class Registry;
 
-class VisualModel : public Component {
+class VisualModel : public Component, public Stateful {
  public:
   explicit VisualModel(BuildContext& ctx) : Component(ctx) {}
   // Rest positions and triangles from one of `filename` (a surface file), `src` (a loader's
@@ -20,15 +21,28 @@ class VisualModel : public Component {
   // surface of the tetrahedra above (all the nodes of the MechanicalObject there, so that an
   // IdentityMapping fits). Then the placement (scale3d, rotation, translation).
   void init() override;
-  // Fields for links: position (current), restPosition, triangles.
+  // Fields for links: position (at the start), restPosition, triangles.
   bool field(const std::string& name, FieldValue& out) const override;
+  // The positions in a simulation: its mapping writes them after every step, so a saved state
+  // leaves them out.
+  struct Live : ComponentStateOf<Live> {
+    Eigen::Matrix3Xd x;
+    void save(StateWriter&) const override {}
+    void load(StateReader&) override {}
+  };
+  std::unique_ptr<ComponentState> initialState() const override {
+    auto l = std::make_unique<Live>();
+    l->x = x0;
+    return l;
+  }
+  Eigen::Matrix3Xd& x(State& s) const { return stateIn<Live>(s).x; }
+  const Eigen::Matrix3Xd& x(const State& s) const { return stateIn<Live>(s).x; }
 
-  int size() const { return static_cast<int>(x.cols()); }
+  int size() const { return static_cast<int>(x0.cols()); }
   // Records the mapping that moves this surface; a second one is an error (two mappings would
   // overwrite each other's result every step).
   void setDriver(const Component& mapping);
 
-  Eigen::Matrix3Xd x;      // current positions, 3 x #vertices
   Eigen::Matrix3Xd x0;     // rest positions (placement applied), 3 x #vertices
   TriangleList triangles;  // 3 x #triangles, 0-based vertex indices
 

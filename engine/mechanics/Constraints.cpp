@@ -170,7 +170,7 @@ class ConstantForceField : public Component, public ForceField {
       throw error("set forces or totalForce");
     }
   }
-  void addForce(const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
+  void addForce(State& s, const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {
     for (size_t k = 0; k < nodes_.size(); ++k) f.col(nodes_[k]) += forces_.col(k);
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override {

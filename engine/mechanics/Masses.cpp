@@ -21,7 +21,7 @@ class LumpedMass : public Component, public Mass, public ForceField {
   using Component::Component;
   MechanicalObject& mstate() const override { return *state_; }
   const Eigen::VectorXd& nodeMass() const override { return m_; }
-  void addForce(const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
+  void addForce(State& s, const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {
     addGravity(m_, scene().gravity(), f);
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override { return gravityEnergy(m_, scene().gravity(), x); }

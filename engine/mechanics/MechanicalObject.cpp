@@ -24,56 +24,55 @@ Eigen::Matrix3Xd toPoints(const Component& c, const std::string& attr, const std
 
 void MechanicalObject::init() {
   if (attrs_.isSet("position")) {
-    x = toPoints(*this, "position", linkedReals("position"));
+    xInit = toPoints(*this, "position", linkedReals("position"));
   } else if (attrs_.isSet("src")) {
     Component* src = linkedComponent("src");
     FieldValue points;
     if (auto* t = dynamic_cast<Topology*>(src)) {
-      x = t->points();
+      xInit = t->points();
     } else if (src->field("position", points)) {  // e.g. a SphereLoader: centres without a topology
-      x = toPoints(*this, "src", points.values);
+      xInit = toPoints(*this, "src", points.values);
     } else {
       throw error("src", "does not link to a loader or topology");
     }
-    if (x.cols() == 0) throw error("src", "links to a component with no points");
+    if (xInit.cols() == 0) throw error("src", "links to a component with no points");
   } else {
     // As SOFA: positions come from the first topology in the context that carries points.
-    for (const Node* n = &node(); n && x.cols() == 0; n = n->parent())
+    for (const Node* n = &node(); n && xInit.cols() == 0; n = n->parent())
       for (const auto& c : n->components()) {
         auto* t = dynamic_cast<Topology*>(c.get());
         if (!t || c.get() == this) continue;
         scene().initComponent(*c);
         if (t->points().cols() > 0) {
-          x = t->points();
+          xInit = t->points();
           break;
         }
       }
   }
-  if (x.cols() == 0) throw error("has no positions: set `position` or put a loader or grid topology in its node");
-  applyPlacement(attrs_, x);
-  x0 = x;
+  if (xInit.cols() == 0) throw error("has no positions: set `position` or put a loader or grid topology in its node");
+  applyPlacement(attrs_, xInit);
+  x0 = xInit;
   if (attrs_.isSet("rest_position")) {
     x0 = toPoints(*this, "rest_position", linkedReals("rest_position"));
-    if (x0.cols() != x.cols())
-      throw error("rest_position", "has " + std::to_string(x0.cols()) + " points, position has " + std::to_string(x.cols()));
+    if (x0.cols() != xInit.cols())
+      throw error("rest_position", "has " + std::to_string(x0.cols()) + " points, position has " + std::to_string(xInit.cols()));
   }
   for (double f : attrs_.reals("externalForce"))
     if (f != 0) throw error("externalForce", "a non-zero external force is not supported; use a ConstantForceField");
   // SOFA's restScale: rest positions scaled about the origin, a body pre-stretched (< 1: shrunk rest).
   x0 *= attrs_.real("restScale");
-  v = Eigen::Matrix3Xd::Zero(3, x.cols());
+  vInit = Eigen::Matrix3Xd::Zero(3, xInit.cols());
   if (attrs_.isSet("velocity")) {
     auto vv = linkedReals("velocity");
     if (vv.size() == 3) {
-      for (int i = 0; i < v.cols(); ++i) v.col(i) = Eigen::Vector3d(vv[0], vv[1], vv[2]);
-    } else if (static_cast<int>(vv.size()) == 3 * x.cols()) {
-      v = toPoints(*this, "velocity", vv);
+      for (int i = 0; i < vInit.cols(); ++i) vInit.col(i) = Eigen::Vector3d(vv[0], vv[1], vv[2]);
+    } else if (static_cast<int>(vv.size()) == 3 * xInit.cols()) {
+      vInit = toPoints(*this, "velocity", vv);
     } else {
-      throw error("velocity", "expected one velocity or one per node (" + std::to_string(x.cols()) + "), got " +
+      throw error("velocity", "expected one velocity or one per node (" + std::to_string(xInit.cols()) + "), got " +
                                   std::to_string(vv.size() / 3));
     }
   }
-  f = Eigen::Matrix3Xd::Zero(3, x.cols());
 }
 
 void MechanicalObject::setMappedBy(const Component& mapping) {
@@ -90,13 +89,21 @@ void MechanicalObject::setMappedBy(const Component& mapping) {
   mappedBy_ = &mapping;
 }
 
-void MechanicalObject::loadState(StateReader& in) {
+std::unique_ptr<ComponentState> MechanicalObject::initialState() const {
+  auto l = std::make_unique<Live>();
+  l->x = xInit;
+  l->v = vInit;
+  l->f = Eigen::Matrix3Xd::Zero(3, xInit.cols());
+  return l;
+}
+
+void MechanicalObject::Live::load(StateReader& in) {
   Eigen::Matrix3Xd nx, nv, nf;
   in.get(nx);
   in.get(nv);
   in.get(nf);
-  if (nx.cols() != size() || nv.cols() != size() || nf.cols() != size())
-    in.mismatch(std::to_string(nx.cols()) + " nodes where this object has " + std::to_string(size()));
+  if (nx.cols() != x.cols() || nv.cols() != x.cols() || nf.cols() != x.cols())
+    in.mismatch(std::to_string(nx.cols()) + " nodes where this object has " + std::to_string(x.cols()));
   x = std::move(nx);
   v = std::move(nv);
   f = std::move(nf);
@@ -104,9 +111,9 @@ void MechanicalObject::loadState(StateReader& in) {
 
 bool MechanicalObject::field(const std::string& name, FieldValue& out) const {
   const Eigen::Matrix3Xd* m = nullptr;
-  if (name == "position") m = &x;
+  if (name == "position") m = &xInit;
   else if (name == "rest_position") m = &x0;
-  else if (name == "velocity") m = &v;
+  else if (name == "velocity") m = &vInit;
   if (!m) return false;
   out.values.assign(m->data(), m->data() + m->size());
   return true;

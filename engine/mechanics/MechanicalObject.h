@@ -4,7 +4,7 @@
 #include <Eigen/Core>
 
 #include "engine/Roles.h"
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/Component.h"
 
 namespace viscera {
@@ -16,24 +16,36 @@ class MechanicalObject : public Component, public Stateful {
   explicit MechanicalObject(BuildContext& ctx) : Component(ctx) {}
   void init() override;
   bool field(const std::string& name, FieldValue& out) const override;
-  // x, v and f; the rest positions belong to the model.
-  void saveState(StateWriter& out) const override {
-    out.put(x);
-    out.put(v);
-    out.put(f);
-  }
-  void loadState(StateReader& in) override;
+  // Positions, velocities and the last total force, in a simulation's state; the rest and initial
+  // positions belong to the model.
+  struct Live : ComponentStateOf<Live> {
+    Eigen::Matrix3Xd x;  // positions, 3 x #nodes
+    Eigen::Matrix3Xd v;  // velocities
+    Eigen::Matrix3Xd f;  // last total force (for outputs)
+    void save(StateWriter& out) const override {
+      out.put(x);
+      out.put(v);
+      out.put(f);
+    }
+    void load(StateReader& in) override;
+  };
+  std::unique_ptr<ComponentState> initialState() const override;
+  Live& live(State& s) const { return stateIn<Live>(s); }
+  const Live& live(const State& s) const { return stateIn<Live>(s); }
+  Eigen::Matrix3Xd& x(State& s) const { return live(s).x; }
+  const Eigen::Matrix3Xd& x(const State& s) const { return live(s).x; }
+  Eigen::Matrix3Xd& v(State& s) const { return live(s).v; }
+  const Eigen::Matrix3Xd& v(const State& s) const { return live(s).v; }
 
-  int size() const { return static_cast<int>(x.cols()); }
+  int size() const { return static_cast<int>(x0.cols()); }
   // A mapped state: its x and v are written by `mapping` every step, not integrated. One mapping
   // per state.
   void setMappedBy(const Component& mapping);
   const Component* mappedBy() const { return mappedBy_; }
 
-  Eigen::Matrix3Xd x;   // positions, 3 x #nodes
-  Eigen::Matrix3Xd v;   // velocities
-  Eigen::Matrix3Xd x0;  // rest positions
-  Eigen::Matrix3Xd f;   // last total force (for outputs)
+  Eigen::Matrix3Xd x0;     // rest positions
+  Eigen::Matrix3Xd xInit;  // positions at the start of a simulation, 3 x #nodes
+  Eigen::Matrix3Xd vInit;  // velocities at the start
 
  private:
   const Component* mappedBy_ = nullptr;

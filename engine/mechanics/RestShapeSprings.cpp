@@ -32,16 +32,16 @@ class RestShapeSpringsForceField : public Component, public ForceField {
     k_.resize(nodes_.size());
     for (size_t n = 0; n < nodes_.size(); ++n) k_[n] = k.size() == 1 ? k[0] : k[n];
   }
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) override {
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {
     for (size_t n = 0; n < nodes_.size(); ++n) f.col(nodes_[n]) -= k_[n] * (x.col(nodes_[n]) - state_->x0.col(nodes_[n]));
   }
-  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+  void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
     for (size_t n = 0; n < nodes_.size(); ++n) df.col(nodes_[n]) -= kFactor * k_[n] * dx.col(nodes_[n]);
   }
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override {
     for (int i : nodes_) pairs.push_back({i, i});
   }
-  void addStiffness(BlockSparseMatrix& K, double kFactor) const override {
+  void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override {
     for (size_t n = 0; n < nodes_.size(); ++n)
       K.block(K.diagonalSlot(nodes_[n])).diagonal().array() -= kFactor * k_[n];
   }

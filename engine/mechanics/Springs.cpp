@@ -11,6 +11,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 
 namespace viscera {
@@ -22,10 +23,26 @@ struct Spring {
   double ks = 0, kd = 0, rest = 0;
 };
 
-class MeshSpringForceField : public Component, public ForceField {
+class MeshSpringForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
   MechanicalObject& mstate() const override { return *state_; }
+  // df_a/dx_b of each spring at the last addForce.
+  struct Live : ComponentStateOf<Live> {
+    std::vector<Eigen::Matrix3d> J;
+    void save(StateWriter& out) const override { out.put(J); }
+    void load(StateReader& in) override {
+      std::vector<Eigen::Matrix3d> j;
+      in.get(j);
+      if (j.size() != J.size()) in.mismatch(std::to_string(j.size()) + " springs where this force field has " + std::to_string(J.size()));
+      J = std::move(j);
+    }
+  };
+  std::unique_ptr<ComponentState> initialState() const override {
+    auto l = std::make_unique<Live>();
+    l->J.assign(springs_.size(), Eigen::Matrix3d::Zero());
+    return l;
+  }
   void init() override {
     state_ = &contextState(*this);
     const Eigen::Matrix3Xd& X = state_->x0;
@@ -93,15 +110,15 @@ class MeshSpringForceField : public Component, public ForceField {
     }
     for (const auto& s : springs_)
       if (!(s.rest > 0)) throw error("two nodes of an element coincide at rest (nodes " + std::to_string(s.a) + " and " + std::to_string(s.b) + ")");
-    J_.assign(springs_.size(), Eigen::Matrix3d::Zero());
   }
-  void addForce(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) override {
+  void addForce(State& st, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const override {
+    std::vector<Eigen::Matrix3d>& J = stateIn<Live>(st).J;
     for (size_t i = 0; i < springs_.size(); ++i) {
       const Spring& s = springs_[i];
       Eigen::Vector3d u = x.col(s.b) - x.col(s.a);
       const double d = u.norm();
       if (!(d > 0)) {
-        J_[i].setZero();
+        J[i].setZero();
         continue;
       }
       u /= d;
@@ -109,12 +126,13 @@ class MeshSpringForceField : public Component, public ForceField {
       f.col(s.a) += intensity * u;
       f.col(s.b) -= intensity * u;
       const double t = intensity / d;
-      J_[i] = (s.ks - t) * u * u.transpose() + t * Eigen::Matrix3d::Identity();
+      J[i] = (s.ks - t) * u * u.transpose() + t * Eigen::Matrix3d::Identity();
     }
   }
-  void addDForce(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+  void addDForce(const State& st, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+    const std::vector<Eigen::Matrix3d>& J = stateIn<Live>(st).J;
     for (size_t i = 0; i < springs_.size(); ++i) {
-      const Eigen::Vector3d d = kFactor * (J_[i] * (dx.col(springs_[i].b) - dx.col(springs_[i].a)));
+      const Eigen::Vector3d d = kFactor * (J[i] * (dx.col(springs_[i].b) - dx.col(springs_[i].a)));
       df.col(springs_[i].a) += d;
       df.col(springs_[i].b) -= d;
     }
@@ -122,10 +140,11 @@ class MeshSpringForceField : public Component, public ForceField {
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override {
     for (const auto& s : springs_) pairs.push_back({s.a, s.b});
   }
-  void addStiffness(BlockSparseMatrix& K, double kFactor) const override {
+  void addStiffness(const State& st, BlockSparseMatrix& K, double kFactor) const override {
+    const std::vector<Eigen::Matrix3d>& J = stateIn<Live>(st).J;
     for (size_t i = 0; i < springs_.size(); ++i) {
       const Spring& s = springs_[i];
-      const Eigen::Matrix3d B = kFactor * J_[i];
+      const Eigen::Matrix3d B = kFactor * J[i];
       K.block(K.diagonalSlot(s.a)) -= B;
       K.block(K.diagonalSlot(s.b)) -= B;
       K.block(K.slot(s.a, s.b)) += B;
@@ -141,7 +160,6 @@ class MeshSpringForceField : public Component, public ForceField {
  private:
   MechanicalObject* state_ = nullptr;
   std::vector<Spring> springs_;
-  std::vector<Eigen::Matrix3d> J_;  // df_a/dx_b of each spring at the last addForce
 };
 
 }  // namespace

@@ -31,19 +31,18 @@ class TrajectoryDriver : public Component, public Driver {
     }
     offset_ = attrs_.real("timeOffset");
     place_ = readPlacement(*this);
-    drive(scene().startTime(), scene().dt());
-    body_->p0 = body_->p;
-    body_->q0 = body_->q;
+    body_->start = motionAt(scene().startTime(), scene().dt());
+    body_->p0 = body_->start.p;
+    body_->q0 = body_->start.q;
   }
   // The pose at t and, as velocity, the mean over the step that ends at t (drive is called with
   // each step's end time): velocity x dt is the step's displacement, which the friction
   // constraints compare the tissue's motion with. Within a sample interval this is the
   // interpolation's velocity; at a sample time it is that of the interval ending there.
-  void drive(double t, double h) override {
-    const double tt = t + offset_;
-    const motion::Pose pose = traj_->sample(tt), before = traj_->sample(tt - h);
-    body_->setMotion(place_.point(pose.p), place_.rotation(pose.q), place_.vector((pose.p - before.p) / h),
-                     place_.vector(rotationVector(before.q, pose.q) / h));
+  void drive(State& s, double t, double h) const override {
+    RigidObject::Live& b = body_->live(s);
+    const RigidObject::Live m = motionAt(t, h);
+    b.setMotion(m.p, m.q, m.v, m.w);
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "duration") out.values = {traj_->end() - offset_};
@@ -52,6 +51,15 @@ class TrajectoryDriver : public Component, public Driver {
   }
 
  private:
+  RigidObject::Live motionAt(double t, double h) const {
+    const double tt = t + offset_;
+    const motion::Pose pose = traj_->sample(tt), before = traj_->sample(tt - h);
+    RigidObject::Live m;
+    m.setMotion(place_.point(pose.p), place_.rotation(pose.q), place_.vector((pose.p - before.p) / h),
+                place_.vector(rotationVector(before.q, pose.q) / h));
+    return m;
+  }
+
   RigidObject* body_ = nullptr;
   std::shared_ptr<const motion::Trajectory> traj_;  // shared by every scene that replays the file
   double offset_ = 0;
@@ -82,25 +90,26 @@ class LinearMovementConstraint : public Component, public Driver {
       r_.emplace_back(m[6 * k + 3], m[6 * k + 4], m[6 * k + 5]);
     }
     relative_ = attrs_.boolean("relativeMovements");
-    drive(scene().startTime(), scene().dt());
+    motionAt(scene().startTime(), scene().dt(), body_->start);
   }
   // Piecewise-linear displacement and rotation vector between keys, held outside them. The
   // velocity is the mean over the step that ends at t (drive is called with each step's end
   // time): velocity x dt is the step's displacement, which the friction constraints compare the
   // tissue's motion with. Within a key interval this is the interval's rate; at a key time it is
   // that of the interval ending there, not of the next one.
-  void drive(double t, double h) override {
+  void drive(State& s, double t, double h) const override { motionAt(t, h, body_->live(s)); }
+
+ private:
+  void motionAt(double t, double h, RigidObject::Live& b) const {
     Eigen::Vector3d d, r, dBefore, rBefore;
     at(t, d, r);
     at(t - h, dBefore, rBefore);
     const Eigen::Vector3d vd = (d - dBefore) / h, vr = (r - rBefore) / h;
     const Eigen::Quaterniond rot = r.norm() > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(r.norm(), r.normalized()))
                                                 : Eigen::Quaterniond::Identity();
-    if (relative_) body_->setMotion(body_->p0 + d, rot * body_->q0, vd, vr);
-    else body_->setMotion(d, rot, vd, vr);
+    if (relative_) b.setMotion(body_->p0 + d, rot * body_->q0, vd, vr);
+    else b.setMotion(d, rot, vd, vr);
   }
-
- private:
   // Displacement and rotation vector at time t.
   void at(double t, Eigen::Vector3d& d, Eigen::Vector3d& r) const {
     if (t <= times_.front()) {

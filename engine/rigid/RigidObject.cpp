@@ -27,29 +27,33 @@ void RigidObject::init() {
   const Eigen::Quaterniond R = Eigen::AngleAxisd(r[2] * M_PI / 180, Eigen::Vector3d::UnitZ()) *
                                Eigen::AngleAxisd(r[1] * M_PI / 180, Eigen::Vector3d::UnitY()) *
                                Eigen::AngleAxisd(r[0] * M_PI / 180, Eigen::Vector3d::UnitX());
-  p = R * Eigen::Vector3d(s[0] * at.x(), s[1] * at.y(), s[2] * at.z()) + Eigen::Vector3d(t[0], t[1], t[2]);
-  q = (R * rot).normalized();
-  p0 = p;
-  q0 = q;
+  p0 = R * Eigen::Vector3d(s[0] * at.x(), s[1] * at.y(), s[2] * at.z()) + Eigen::Vector3d(t[0], t[1], t[2]);
+  q0 = (R * rot).normalized();
   if (attrs_.isSet("velocity")) {
     auto vel = linkedReals("velocity");
     if (vel.size() != 6)
       throw error("velocity", "a Rigid3d velocity is 6 numbers: vx vy vz wx wy wz (got " + std::to_string(vel.size()) + ")");
-    v = Eigen::Vector3d(vel[0], vel[1], vel[2]);
-    w = Eigen::Vector3d(vel[3], vel[4], vel[5]);
+    start.v = Eigen::Vector3d(vel[0], vel[1], vel[2]);
+    start.w = Eigen::Vector3d(vel[3], vel[4], vel[5]);
   }
+  start.p = p0;
+  start.q = q0;
   if (attrs_.isSet("rest_position")) throw error("rest_position", "is not used by Rigid3d objects");
 }
 
-void RigidObject::setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,
-                            const Eigen::Vector3d& ang) {
+void RigidObject::Live::setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,
+                                  const Eigen::Vector3d& ang) {
   p = pos;
   q = rot.normalized();
   v = lin;
   w = ang;
 }
 
-void RigidObject::saveState(StateWriter& out) const {
+std::unique_ptr<ComponentState> RigidObject::initialState() const {
+  return std::make_unique<Live>(start);
+}
+
+void RigidObject::Live::save(StateWriter& out) const {
   out.put(p);
   out.put(q.coeffs());
   out.put(v);
@@ -59,7 +63,7 @@ void RigidObject::saveState(StateWriter& out) const {
   out.put(contacts);
 }
 
-void RigidObject::loadState(StateReader& in) {
+void RigidObject::Live::load(StateReader& in) {
   Eigen::Vector4d qc;
   in.get(p);
   in.get(qc);
@@ -72,9 +76,8 @@ void RigidObject::loadState(StateReader& in) {
 }
 
 bool RigidObject::field(const std::string& name, FieldValue& out) const {
-  if (name == "position") out.values = {p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()};
-  else if (name == "rest_position") out.values = {p0.x(), p0.y(), p0.z(), q0.x(), q0.y(), q0.z(), q0.w()};
-  else if (name == "velocity") out.values = {v.x(), v.y(), v.z(), w.x(), w.y(), w.z()};
+  if (name == "position" || name == "rest_position") out.values = {p0.x(), p0.y(), p0.z(), q0.x(), q0.y(), q0.z(), q0.w()};
+  else if (name == "velocity") out.values = {start.v.x(), start.v.y(), start.v.z(), start.w.x(), start.w.y(), start.w.z()};
   else return false;
   return true;
 }

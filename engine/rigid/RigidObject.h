@@ -7,7 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-#include "engine/State.h"
+#include "core/State.h"
 #include "core/Component.h"
 
 namespace viscera {
@@ -17,24 +17,32 @@ class RigidObject : public Component, public Stateful {
   explicit RigidObject(BuildContext& ctx) : Component(ctx) {}
   void init() override;
   bool field(const std::string& name, FieldValue& out) const override;
-  // Pose, velocity and the last contact wrench.
-  void saveState(StateWriter& out) const override;
-  void loadState(StateReader& in) override;
+  // Pose, velocity and the last contact wrench, in a simulation's state.
+  struct Live : ComponentStateOf<Live> {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();  // position
+    Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+    Eigen::Vector3d v = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();  // linear, angular velocity
+    // Contact wrench on the body over the last step (world frame, torque about p).
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
+    int contacts = 0;
+    // Sets the pose and velocity (world frame; angular velocity as a vector).
+    void setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,
+                   const Eigen::Vector3d& ang);
+    // Velocity of the body point at world position `at`.
+    Eigen::Vector3d pointVelocity(const Eigen::Vector3d& at) const { return v + w.cross(at - p); }
+    void save(StateWriter& out) const override;
+    void load(StateReader& in) override;
+  };
+  std::unique_ptr<ComponentState> initialState() const override;
+  Live& live(State& s) const { return stateIn<Live>(s); }
+  const Live& live(const State& s) const { return stateIn<Live>(s); }
 
-  // Sets the pose and velocity (world frame; angular velocity as a vector).
-  void setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,
-                 const Eigen::Vector3d& ang);
-  // Velocity of the body point at world position `at`.
-  Eigen::Vector3d pointVelocity(const Eigen::Vector3d& at) const { return v + w.cross(at - p); }
-
-  Eigen::Vector3d p = Eigen::Vector3d::Zero(), p0 = Eigen::Vector3d::Zero();  // position, initial position
-  Eigen::Quaterniond q = Eigen::Quaterniond::Identity(), q0 = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d v = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();  // linear, angular velocity
+  // The reference pose: `position` as placed, or where a trajectory starts.
+  Eigen::Vector3d p0 = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q0 = Eigen::Quaterniond::Identity();
+  // The pose and velocity at the start of a simulation (a driver sets them at init).
+  Live start;
   double mass = 0;  // informative: the body is driven
-
-  // Contact wrench on the body over the last step (world frame, torque about p).
-  Eigen::Vector3d force = Eigen::Vector3d::Zero(), torque = Eigen::Vector3d::Zero();
-  int contacts = 0;
   bool driven = false;  // a driver sets the motion
 };
 

@@ -29,25 +29,31 @@ class JointReplayDriver : public Component, public Driver {
  public:
   using Component::Component;
 
-  void drive(double t, double h) override {
+  void drive(State& s, double t, double h) const override { motionAt(t, h, body_->live(s)); }
+
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "duration") out.values = {joints_.end() - offset_};
+    else if (name == "joints") out.values.assign(qStart_.data(), qStart_.data() + qStart_.size());
+    else return false;
+    return true;
+  }
+
+ private:
+  // The pose at t and the mean velocity over the step (t - h, t].
+  void motionAt(double t, double h, RigidObject::Live& b) const {
     const double tt = t + offset_;
-    joints_.sample(tt - h, q_);
-    const Eigen::Isometry3d before = chain_.forwardKinematics(q_, frames_);
-    joints_.sample(tt, q_);
-    const Eigen::Isometry3d now = chain_.forwardKinematics(q_, frames_);
+    Eigen::VectorXd q(chain_.dof());
+    std::vector<Eigen::Isometry3d> frames(chain_.dof());
+    joints_.sample(tt - h, q);
+    const Eigen::Isometry3d before = chain_.forwardKinematics(q, frames);
+    joints_.sample(tt, q);
+    const Eigen::Isometry3d now = chain_.forwardKinematics(q, frames);
     const Eigen::Vector3d p0 = before.translation() * metresToScene_, p1 = now.translation() * metresToScene_;
     const Eigen::Quaterniond r0(before.linear()), r1(now.linear());
     // Velocity: the mean over the step ending at t (the step's displacement / dt), as the other
     // drivers report it for the friction constraints.
-    body_->setMotion(place_.point(p1), place_.rotation(r1), place_.vector((p1 - p0) / h),
-                     place_.vector(rotationVector(r0, r1) / h));
-  }
-
-  bool field(const std::string& name, FieldValue& out) const override {
-    if (name == "duration") out.values = {joints_.end() - offset_};
-    else if (name == "joints") out.values.assign(q_.data(), q_.data() + q_.size());
-    else return false;
-    return true;
+    b.setMotion(place_.point(p1), place_.rotation(r1), place_.vector((p1 - p0) / h),
+                place_.vector(rotationVector(r0, r1) / h));
   }
 
  protected:
@@ -74,11 +80,11 @@ class JointReplayDriver : public Component, public Driver {
     offset_ = attrs_.real("timeOffset");
     place_ = readPlacement(*this);
     metresToScene_ = 1.0 / scene().units().siOf(Dimension::length());
-    q_.resize(chain_.dof());
-    frames_.resize(chain_.dof());
-    drive(scene().startTime(), scene().dt());
-    body_->p0 = body_->p;
-    body_->q0 = body_->q;
+    qStart_.resize(chain_.dof());
+    joints_.sample(scene().startTime() + offset_, qStart_);
+    motionAt(scene().startTime(), scene().dt(), body_->start);
+    body_->p0 = body_->start.p;
+    body_->q0 = body_->start.q;
   }
 
   const robot::SerialChain chain_ = robot::psmLargeNeedleDriver();
@@ -88,8 +94,7 @@ class JointReplayDriver : public Component, public Driver {
   robot::JointTrajectory joints_;
   double offset_ = 0, metresToScene_ = 1;
   Placement place_;
-  Eigen::VectorXd q_;
-  std::vector<Eigen::Isometry3d> frames_;
+  Eigen::VectorXd qStart_;  // the joints at the start
 };
 
 class PsmJointDriver : public JointReplayDriver {

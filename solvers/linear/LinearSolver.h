@@ -6,6 +6,7 @@
 #include <functional>
 #include <string>
 
+#include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 
 namespace viscera {
@@ -26,14 +27,17 @@ struct LinearSolveInfo {
   std::string message;
 };
 
-// The role of a linear solver component.
-class LinearSolver {
+// The role of a linear solver component. Its workspace (factorisations, preconditioners) is in
+// the simulation's state: it is rebuilt as the simulation steps and never saved.
+class LinearSolver : public Stateful {
  public:
-  virtual ~LinearSolver() = default;
   // Whether the ODE solver must assemble the matrix for this solver.
   virtual bool needsMatrix() const = 0;
   // Solves A x = b. `x` holds the previous solution on entry (used by warm starts).
-  virtual LinearSolveInfo solve(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+  virtual LinearSolveInfo solve(State& s, const LinearProblem& problem, const Eigen::VectorXd& b,
+                                Eigen::VectorXd& x) const = 0;
+  // No workspace by default.
+  std::unique_ptr<ComponentState> initialState() const override;
 };
 
 struct CgOptions {

@@ -10,6 +10,12 @@ namespace viscera {
 
 namespace {
 
+// A linear solver's state block when it keeps nothing between solves.
+struct NoWorkspace : ComponentStateOf<NoWorkspace> {
+  void save(StateWriter&) const override {}
+  void load(StateReader&) override {}
+};
+
 class CGLinearSolver : public Component, public LinearSolver {
  public:
   using Component::Component;
@@ -25,7 +31,7 @@ class CGLinearSolver : public Component, public LinearSolver {
       throw error("preconditioner", "needs the assembled matrix; remove it or set assembled=\"true\"");
   }
   bool needsMatrix() const override { return assembled_; }
-  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+  LinearSolveInfo solve(State&, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
     return conjugateGradient(p, b, x, o_);
   }
 
@@ -38,18 +44,27 @@ class MinResLinearSolver : public Component, public LinearSolver {
  public:
   using Component::Component;
   bool needsMatrix() const override { return false; }
-  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+  LinearSolveInfo solve(State&, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
     return minimumResidual(p, b, x, static_cast<int>(attrs_.integer("iterations")), attrs_.real("tolerance"));
   }
 };
 
 // SparseLDLSolver factorises every step's matrix; PrecomputedLinearSolver (SOFA's) factorises the
-// first one and solves every later step with it, as if the system never changed.
+// first one and solves every later step with it, as if the system never changed (a copied or
+// restored state factorises again at its first step).
 class SparseLDLSolver : public Component, public LinearSolver {
  public:
   using Component::Component;
   bool needsMatrix() const override { return true; }
-  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+  struct Live : ComponentStateOf<Live> {
+    Scratch<CholmodSolver> chol;
+    void save(StateWriter&) const override {}
+    void load(StateReader&) override {}
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
+  LinearSolveInfo solve(State& s, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
+    Scratch<CholmodSolver>& chol = stateIn<Live>(s).chol;
+    const bool factorized = !chol.empty();
     LinearSolveInfo info;
     if (!p.matrix) {
       info.ok = false;
@@ -57,12 +72,12 @@ class SparseLDLSolver : public Component, public LinearSolver {
       return info;
     }
     const bool precomputed = typeName() == "PrecomputedLinearSolver";
-    if ((!precomputed || !factorized_) && !chol_.factorize(*p.matrix, info.message)) {
+    if ((!precomputed || !factorized) && !chol->factorize(*p.matrix, info.message)) {
+      chol.reset();
       info.ok = false;
       return info;
     }
-    factorized_ = true;
-    chol_.solve(b, x);
+    chol->solve(b, x);
     info.iterations = 1;
     if (!x.allFinite()) {
       info.ok = false;
@@ -70,10 +85,6 @@ class SparseLDLSolver : public Component, public LinearSolver {
     }
     return info;
   }
-
- private:
-  CholmodSolver chol_;
-  bool factorized_ = false;
 };
 
 // A preconditioner for PCGLinearSolver, built from the assembled matrix.
@@ -118,7 +129,20 @@ class PCGLinearSolver : public Component, public LinearSolver {
     updateStep_ = static_cast<int>(attrs_.integer("update_step"));
   }
   bool needsMatrix() const override { return preconditioner_ != nullptr || direct_; }
-  LinearSolveInfo solve(const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+  // The preconditioner in use and the solves since the start; a copied state builds its own.
+  struct Live : ComponentStateOf<Live> {
+    Preconditioner precondition;
+    long solves = 0;
+    Live() = default;
+    Live(const Live& o) : solves(o.solves) {}
+    Live& operator=(const Live&) = delete;
+    void save(StateWriter&) const override {}
+    void load(StateReader&) override {}
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
+  LinearSolveInfo solve(State& s, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
+    Live& l = stateIn<Live>(s);
+    Preconditioner& precondition = l.precondition;
     if (preconditioner_ || direct_) {
       LinearSolveInfo info;
       if (!p.matrix) {
@@ -127,9 +151,9 @@ class PCGLinearSolver : public Component, public LinearSolver {
         return info;
       }
       // SOFA rebuilds the preconditioner every update_step solves and keeps it in between.
-      if (solves_++ % updateStep_ == 0 || !precondition_) {
+      if (l.solves++ % updateStep_ == 0 || !precondition) {
         if (preconditioner_) {
-          precondition_ = preconditioner_->build(*p.matrix);
+          precondition = preconditioner_->build(*p.matrix);
         } else {
           auto chol = std::make_shared<CholmodSolver>();
           if (!chol->factorize(*p.matrix, info.message)) {
@@ -137,23 +161,23 @@ class PCGLinearSolver : public Component, public LinearSolver {
             info.message = "PCGLinearSolver's direct preconditioner: " + info.message;
             return info;
           }
-          precondition_ = [chol](const Eigen::VectorXd& r, Eigen::VectorXd& z) { chol->solve(r, z); };
+          precondition = [chol](const Eigen::VectorXd& r, Eigen::VectorXd& z) { chol->solve(r, z); };
         }
       }
     }
     return preconditionedConjugateGradient(p, b, x, static_cast<int>(attrs_.integer("iterations")), attrs_.real("tolerance"),
-                                           precondition_ ? &precondition_ : nullptr);
+                                           precondition ? &precondition : nullptr);
   }
 
  private:
   PreconditionerComponent* preconditioner_ = nullptr;
   bool direct_ = false;  // the preconditioner is a direct solver: the factorised matrix
-  Preconditioner precondition_;
   int updateStep_ = 1;
-  long solves_ = 0;
 };
 
 }  // namespace
+
+std::unique_ptr<ComponentState> LinearSolver::initialState() const { return std::make_unique<NoWorkspace>(); }
 
 void registerLinearSolvers(Registry& r) {
   {

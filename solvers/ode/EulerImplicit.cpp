@@ -20,15 +20,22 @@ namespace {
 class EulerImplicitSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
-  // The last velocity change (the next linear solve starts from it) and its iteration count.
-  void saveState(StateWriter& out) const override {
-    out.put(dv_);
-    out.put(lastIterations_);
-  }
-  void loadState(StateReader& in) override {
-    in.get(dv_);
-    in.get(lastIterations_);
-  }
+  // The last velocity change (the next linear solve starts from it) and its iteration count; the
+  // step's matrix is workspace.
+  struct Live : ComponentStateOf<Live> {
+    Eigen::VectorXd dv;
+    int lastIterations = 0;
+    BlockSparseMatrix A;
+    void save(StateWriter& out) const override {
+      out.put(dv);
+      out.put(lastIterations);
+    }
+    void load(StateReader& in) override {
+      in.get(dv);
+      in.get(lastIterations);
+    }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
   void init() override {
     rM_ = attrs_.real("rayleighMass");
     rK_ = attrs_.real("rayleighStiffness");
@@ -36,15 +43,17 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     if ((idle_ = idleInRigidNode(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     linear_ = findLinearSolver(*this);
+    if (linear_->needsMatrix()) sys_->prepareAssembly();
   }
 
-  std::optional<Diverged> step(double t, double h, int stepIndex) override {
+  std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
     if (idle_) return std::nullopt;
-    MechanicalObject& s = sys_->state();
-    const int n = s.size();
+    Live& l = stateIn<Live>(st);
+    MechanicalObject::Live& s = sys_->state().live(st);
+    const int n = sys_->nodes();
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     Eigen::Matrix3Xd& f = s.f;
-    sys_->computeForce(s.x, s.v, f);
+    sys_->computeForce(st, s.x, s.v, f);
 
     const double mFact = 1.0 + h * rM_;
     const double kFact = -h * (h + rK_);
@@ -53,27 +62,28 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     const double uScale = h / (h + rK_);
     Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
     LinearProblem problem;
+    BlockSparseMatrix& A = l.A;
     if (linear_->needsMatrix()) {
-      sys_->assembleStiffness(K_, uScale);
-      K_.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
+      sys_->assembleStiffness(st, A, uScale);
+      A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
       // A = kFact K + mFact M, constrained.
-      K_.scale(kFact);
-      sys_->addMass(K_, mFact);
-      sys_->constrain(K_);
-      problem.matrix = &K_;
-      problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+      A.scale(kFact);
+      sys_->addMass(A, mFact);
+      sys_->constrain(A);
+      problem.matrix = &A;
+      problem.apply = [&A](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         q.resize(p.size());
-        K_.multiply(p, q);
+        A.multiply(p, q);
       };
       problem.diagonal.resize(3 * n);
-      for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = K_.block(K_.diagonalSlot(i)).diagonal();
+      for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();
     } else {
-      sys_->addKdx(s.v, Kv, 1.0, uScale);
-      problem.apply = [this, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+      sys_->addKdx(st, s.v, Kv, 1.0, uScale);
+      problem.apply = [this, &st, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
         Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
         sys_->addMdx(P, Q, mFact);
-        sys_->addKdx(P, Q, kFact, uScale);
+        sys_->addKdx(st, P, Q, kFact, uScale);
         sys_->project(Q);
         q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
       };
@@ -83,18 +93,19 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     Eigen::Matrix3Xd b = h * (f + (h + rK_) * Kv - rM_ * Mv);
     sys_->project(b);
     Eigen::VectorXd bv = Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n);
-    if (dv_.size() != 3 * n) dv_ = Eigen::VectorXd::Zero(3 * n);
-    LinearSolveInfo info = linear_->solve(problem, bv, dv_);
-    lastIterations_ = info.iterations;
+    Eigen::VectorXd& dv = l.dv;
+    if (dv.size() != 3 * n) dv = Eigen::VectorXd::Zero(3 * n);
+    LinearSolveInfo info = linear_->solve(st, problem, bv, dv);
+    l.lastIterations = info.iterations;
     if (!info.ok) {
       Diverged d;
       d.step = stepIndex;
       d.time = t + h;
       d.reason = "linear solver failed: " + info.message;
-      d.object = s.name();
+      d.object = sys_->state().name();
       return d;
     }
-    s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv_.data(), 3, n);
+    s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
     if (vdamping_ > 0) s.v *= std::exp(-h * vdamping_);
     s.x += h * s.v;
     if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {
@@ -105,7 +116,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     }
     return std::nullopt;
   }
-  int lastLinearIterations() const override { return lastIterations_; }
+  int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }
   // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F.
   std::optional<StepResponse> stepResponse(double h) const override {
     if (idle_) return std::nullopt;
@@ -117,9 +128,6 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   bool idle_ = false;
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
-  BlockSparseMatrix K_;
-  Eigen::VectorXd dv_;
-  int lastIterations_ = 0;
 };
 
 }  // namespace

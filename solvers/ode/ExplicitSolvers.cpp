@@ -18,7 +18,7 @@ namespace viscera {
 namespace {
 
 // What the explicit solvers share: the mechanical system and a = M^-1 f(x, v), projected.
-class ExplicitSolver : public Component, public OdeSolver {
+class ExplicitSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
   void init() override {
@@ -26,15 +26,29 @@ class ExplicitSolver : public Component, public OdeSolver {
     sys_ = std::make_unique<MechanicalSystem>(*this);
     // A consistent mass is not inverted node by node: M a = f is solved.
     if (sys_->consistentMass()) linear_ = findLinearSolver(*this);
+    if (linear_ && linear_->needsMatrix()) {
+      sys_->prepareAssembly();  // M's pattern is within the stiffness pattern
+      M_ = sys_->pattern();
+      sys_->addMass(M_, 1.0);
+      sys_->constrain(M_);
+    }
   }
+  // The last accelerations of a consistent mass's solve (the next one starts from them).
+  struct Live : ComponentStateOf<Live> {
+    Eigen::VectorXd acc;
+    void save(StateWriter& out) const override { out.put(acc); }
+    void load(StateReader& in) override { in.get(acc); }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
 
  protected:
   // The accelerations at (x, v); f receives the forces.
-  std::optional<Diverged> acceleration(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f,
-                                       Eigen::Matrix3Xd& a, double t, double h, int stepIndex) {
-    sys_->computeForce(x, v, f);
+  std::optional<Diverged> acceleration(State& st, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v,
+                                       Eigen::Matrix3Xd& f, Eigen::Matrix3Xd& a, double t, double h,
+                                       int stepIndex) const {
+    sys_->computeForce(st, x, v, f);
     if (linear_) {
-      if (auto failed = solveMass(f, a, t, h, stepIndex)) return failed;
+      if (auto failed = solveMass(st, f, a, t, h, stepIndex)) return failed;
     } else {
       a = f * sys_->nodeMass().cwiseInverse().asDiagonal();
     }
@@ -47,14 +61,11 @@ class ExplicitSolver : public Component, public OdeSolver {
 
  private:
   // a = M^-1 f with the node's linear solver (fixed nodes projected out).
-  std::optional<Diverged> solveMass(const Eigen::Matrix3Xd& f, Eigen::Matrix3Xd& a, double t, double h, int stepIndex) {
+  std::optional<Diverged> solveMass(State& st, const Eigen::Matrix3Xd& f, Eigen::Matrix3Xd& a, double t, double h,
+                                    int stepIndex) const {
     const int n = sys_->nodes();
     LinearProblem problem;
     if (linear_->needsMatrix()) {
-      sys_->assembleStiffness(M_);  // for the pattern; the values are replaced by M's
-      M_.setZero();
-      sys_->addMass(M_, 1.0);
-      sys_->constrain(M_);
       problem.matrix = &M_;
       problem.apply = [this](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         q.resize(p.size());
@@ -71,8 +82,9 @@ class ExplicitSolver : public Component, public OdeSolver {
     }
     Eigen::Matrix3Xd b = f;
     sys_->project(b);
-    if (acc_.size() != 3 * n) acc_ = Eigen::VectorXd::Zero(3 * n);
-    const LinearSolveInfo info = linear_->solve(problem, Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n), acc_);
+    Eigen::VectorXd& acc = stateIn<Live>(st).acc;
+    if (acc.size() != 3 * n) acc = Eigen::VectorXd::Zero(3 * n);
+    const LinearSolveInfo info = linear_->solve(st, problem, Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n), acc);
     if (!info.ok) {
       Diverged d;
       d.step = stepIndex;
@@ -81,13 +93,12 @@ class ExplicitSolver : public Component, public OdeSolver {
       d.object = sys_->state().name();
       return d;
     }
-    a = Eigen::Map<const Eigen::Matrix3Xd>(acc_.data(), 3, n);
+    a = Eigen::Map<const Eigen::Matrix3Xd>(acc.data(), 3, n);
     return std::nullopt;
   }
 
   LinearSolver* linear_ = nullptr;
-  BlockSparseMatrix M_;
-  Eigen::VectorXd acc_;
+  BlockSparseMatrix M_;  // the constrained mass matrix, when the linear solver takes one
 };
 
 class EulerExplicitSolver : public ExplicitSolver {
@@ -98,12 +109,12 @@ class EulerExplicitSolver : public ExplicitSolver {
     ExplicitSolver::init();
   }
 
-  std::optional<Diverged> step(double t, double h, int stepIndex) override {
+  std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
     if (idle_) return std::nullopt;
-    MechanicalObject& s = sys_->state();
+    MechanicalObject::Live& s = sys_->state().live(st);
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     Eigen::Matrix3Xd a;
-    if (auto failed = acceleration(s.x, s.v, s.f, a, t, h, stepIndex)) return failed;
+    if (auto failed = acceleration(st, s.x, s.v, s.f, a, t, h, stepIndex)) return failed;
     if (symplectic_) {
       s.v += h * a;
       s.x += h * s.v;
@@ -127,20 +138,20 @@ class RungeKutta4Solver : public ExplicitSolver {
  public:
   using ExplicitSolver::ExplicitSolver;
 
-  std::optional<Diverged> step(double t, double h, int stepIndex) override {
+  std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
     if (idle_) return std::nullopt;
-    MechanicalObject& s = sys_->state();
+    MechanicalObject::Live& s = sys_->state().live(st);
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     // Stage k: velocity v_k (the slope of x) and acceleration a_k (the slope of v) at the point
     // reached from the start with the previous stage's slopes.
     Eigen::Matrix3Xd v1 = v0, a1, a2, a3, a4, f;
-    if (auto failed = acceleration(x0, v1, s.f, a1, t, h, stepIndex)) return failed;
+    if (auto failed = acceleration(st, x0, v1, s.f, a1, t, h, stepIndex)) return failed;
     const Eigen::Matrix3Xd v2 = v0 + 0.5 * h * a1;
-    if (auto failed = acceleration(x0 + 0.5 * h * v1, v2, f, a2, t, h, stepIndex)) return failed;
+    if (auto failed = acceleration(st, x0 + 0.5 * h * v1, v2, f, a2, t, h, stepIndex)) return failed;
     const Eigen::Matrix3Xd v3 = v0 + 0.5 * h * a2;
-    if (auto failed = acceleration(x0 + 0.5 * h * v2, v3, f, a3, t, h, stepIndex)) return failed;
+    if (auto failed = acceleration(st, x0 + 0.5 * h * v2, v3, f, a3, t, h, stepIndex)) return failed;
     const Eigen::Matrix3Xd v4 = v0 + h * a3;
-    if (auto failed = acceleration(x0 + h * v3, v4, f, a4, t, h, stepIndex)) return failed;
+    if (auto failed = acceleration(st, x0 + h * v3, v4, f, a4, t, h, stepIndex)) return failed;
     s.x = x0 + (h / 6) * (v1 + 2 * v2 + 2 * v3 + v4);
     s.v = v0 + (h / 6) * (a1 + 2 * a2 + 2 * a3 + a4);
     if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {

@@ -33,9 +33,20 @@ Eigen::SparseMatrix<double> toSparse(const BlockSparseMatrix& A) {
 class StaticSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
-  // Newton starts from the current positions each step: only the statistics carry over.
-  void saveState(StateWriter& out) const override { out.put(iterationsDone_); }
-  void loadState(StateReader& in) override { in.get(iterationsDone_); }
+  // Newton starts from the current positions each step: only the statistics carry over; the
+  // tangent and its factorisation are workspace.
+  struct Lu {
+    Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
+    bool analysed = false;
+  };
+  struct Live : ComponentStateOf<Live> {
+    int iterationsDone = 0;
+    BlockSparseMatrix K;
+    Scratch<Lu> lu;
+    void save(StateWriter& out) const override { out.put(iterationsDone); }
+    void load(StateReader& in) override { in.get(iterationsDone); }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
   void init() override {
     iterations_ = static_cast<int>(attrs_.integer("newton_iterations"));
     absRes_ = attrs_.real("absolute_residual_tolerance_threshold");
@@ -49,61 +60,65 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     } else {
       linear_ = findLinearSolver(*this);
     }
+    sys_->prepareAssembly();
   }
 
-  std::optional<Diverged> step(double t, double, int stepIndex) override {
+  std::optional<Diverged> step(State& st, double t, double, int stepIndex) const override {
     if (idle_) return std::nullopt;
-    MechanicalObject& s = sys_->state();
-    const int n = s.size();
+    Live& l = stateIn<Live>(st);
+    MechanicalObject::Live& s = sys_->state().live(st);
+    BlockSparseMatrix& K = l.K;
+    const int n = sys_->nodes();
     const Eigen::Matrix3Xd xStart = s.x;
     const Eigen::Matrix3Xd zero = Eigen::Matrix3Xd::Zero(3, n);
     double r0 = -1;
-    iterationsDone_ = 0;
+    l.iterationsDone = 0;
     auto fail = [&](const std::string& why) {
       s.x = xStart;
       Diverged d;
       d.step = stepIndex;
       d.time = t;
       d.reason = why;
-      d.object = s.name();
+      d.object = sys_->state().name();
       return d;
     };
     for (int it = 0; it < iterations_; ++it) {
-      sys_->computeForce(s.x, zero, s.f);
+      sys_->computeForce(st, s.x, zero, s.f);
       Eigen::Matrix3Xd r = s.f;
       sys_->project(r);
       const double rn = r.norm();
       if (r0 < 0) r0 = rn;
       if (rn <= absRes_ || (r0 > 0 && rn <= relRes_ * r0)) break;
       // Solve (-K) dx = f.
-      sys_->assembleStiffness(K_);
-      K_.scale(-1.0);
-      sys_->constrain(K_);
+      sys_->assembleStiffness(st, K);
+      K.scale(-1.0);
+      sys_->constrain(K);
       Eigen::VectorXd b = Eigen::Map<const Eigen::VectorXd>(r.data(), 3 * n), dx;
       if (exact_) {
-        Eigen::SparseMatrix<double> A = toSparse(K_);
+        Eigen::SparseMatrix<double> A = toSparse(K);
         A.makeCompressed();
-        if (!luReady_) {
-          lu_.analyzePattern(A);
-          luReady_ = true;
+        Lu& lu = l.lu.get();
+        if (!lu.analysed) {
+          lu.lu.analyzePattern(A);
+          lu.analysed = true;
         }
-        lu_.factorize(A);
-        if (lu_.info() != Eigen::Success) return fail("singular tangent stiffness in Newton iteration " + std::to_string(it));
-        dx = lu_.solve(b);
+        lu.lu.factorize(A);
+        if (lu.lu.info() != Eigen::Success) return fail("singular tangent stiffness in Newton iteration " + std::to_string(it));
+        dx = lu.lu.solve(b);
       } else {
         LinearProblem p;
-        p.matrix = &K_;
-        p.apply = [this](const Eigen::VectorXd& a, Eigen::VectorXd& q) {
+        p.matrix = &K;
+        p.apply = [&K](const Eigen::VectorXd& a, Eigen::VectorXd& q) {
           q.resize(a.size());
-          K_.multiply(a, q);
+          K.multiply(a, q);
         };
         dx = Eigen::VectorXd::Zero(3 * n);
-        LinearSolveInfo info = linear_->solve(p, b, dx);
+        LinearSolveInfo info = linear_->solve(st, p, b, dx);
         if (!info.ok) return fail("linear solver failed: " + info.message);
       }
       if (!dx.allFinite()) return fail("non-finite Newton correction");
       s.x += Eigen::Map<const Eigen::Matrix3Xd>(dx.data(), 3, n);
-      ++iterationsDone_;
+      ++l.iterationsDone;
       if (dx.norm() <= absCorr_) break;
     }
     s.v.setZero();
@@ -118,7 +133,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     if (idle_) return std::nullopt;
     return StepResponse{0.0, -1.0, 1.0, 0.0};
   }
-  int lastLinearIterations() const override { return iterationsDone_; }
+  int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).iterationsDone; }
 
  private:
   int iterations_ = 10;
@@ -126,10 +141,6 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
   bool exact_ = true, idle_ = false;
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
-  BlockSparseMatrix K_;
-  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu_;
-  bool luReady_ = false;
-  int iterationsDone_ = 0;
 };
 
 }  // namespace

@@ -64,8 +64,8 @@ void BM_PalpationReplay(benchmark::State& state) {
     state.counters["dt_ms"] = scene->dt() * 1e3;
     state.counters["ms_per_step"] = 1e3 * wall / steps;
     state.counters["realtime_factor"] = duration / wall;
-    state.counters["max_penetration_mm"] = sim.pipeline()->maxPenetration();
-    state.counters["max_contacts"] = sim.pipeline()->maxContacts();
+    state.counters["max_penetration_mm"] = sim.pipeline()->maxPenetration(sim.state());
+    state.counters["max_contacts"] = sim.pipeline()->maxContacts(sim.state());
   }
 }
 
@@ -89,7 +89,7 @@ void BM_PalpationReplayAccuracy(benchmark::State& state) {
         for (int k = 0; k < 10; ++k)
           if (auto bad = b.step()) return state.SkipWithError(bad->str().c_str());
       }
-      const double d = (xa.x - xb.x).colwise().norm().maxCoeff();
+      const double d = (xa.x(a.state()) - xb.x(b.state())).colwise().norm().maxCoeff();
       sumFrame += d;
       if (d > worst) {
         worst = d;

@@ -257,7 +257,7 @@ double tipSag(const SceneDesc& desc, const std::string& outDir, int steps) {
   }
   sim.end();
   const MechanicalObject& m = *s->all<MechanicalObject>().at(0);
-  return (m.x.col(m.size() - 1) - m.x0.col(m.size() - 1)).norm();
+  return (m.x(sim.state()).col(m.size() - 1) - m.x0.col(m.size() - 1)).norm();
 }
 
 TEST(SceneGraph, EditingTheDescriptionChangesTheResult) {

@@ -157,7 +157,7 @@ Eigen::Matrix3Xd runSteps(Scene& s, int n) {
     auto f = sim.step();
     EXPECT_FALSE(f) << f->str();
   }
-  return s.all<MechanicalObject>().at(0)->x;
+  return s.all<MechanicalObject>().at(0)->x(sim.state());
 }
 
 TEST(Units, YoungModulusWithUnitEqualsPlainNumberInScene) {

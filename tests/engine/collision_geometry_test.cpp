@@ -329,7 +329,8 @@ struct Block {
     tools = scene->all<RigidObject>();
     top = Vector3d(n[0] - 1, n[1] - 1, n[2] - 1);
   }
-  const Eigen::Matrix3Xd& x() const { return surface->mstate().x; }
+  State& state() const { return sim->state(); }
+  const Eigen::Matrix3Xd& x() const { return surface->mstate().x(state()); }
   int node(const Vector3d& at) const {
     for (int i = 0; i < x().cols(); ++i)
       if ((x().col(i) - at).norm() < 1e-12) return i;
@@ -338,10 +339,10 @@ struct Block {
   }
   // Contacts with the first sphere centred at c.
   const std::vector<Contact>& detectAt(const Vector3d& c) {
-    tools[0]->p = c;
-    for (size_t k = 1; k < tools.size(); ++k) tools[k]->p = Vector3d(0, 0, 1e3 * (k + 1));  // out of reach
-    sim->pipeline()->detect();
-    return surface->contacts();
+    tools[0]->live(state()).p = c;
+    for (size_t k = 1; k < tools.size(); ++k) tools[k]->live(state()).p = Vector3d(0, 0, 1e3 * (k + 1));  // out of reach
+    sim->pipeline()->detect(state());
+    return surface->contacts(state());
   }
 };
 
@@ -583,15 +584,15 @@ TEST(CollisionDetection, NothingBeyondTheAlarmDistance) {
 
 TEST(CollisionDetection, StepRunsTheSameDetection) {
   Block b({3, 3, 3}, 1, 0.3, 0.5, 0.1);
-  b.tools[0]->p = Vector3d(0.7, 1.2, 2.5);  // no driver: the body stays where it is put
+  b.tools[0]->live(b.state()).p = Vector3d(0.7, 1.2, 2.5);  // no driver: the body stays where it is put
   ASSERT_FALSE(b.sim->step().has_value());
-  const auto& cs = b.surface->contacts();
+  const auto& cs = b.surface->contacts(b.state());
   ASSERT_EQ(cs.size(), 1u);
   EXPECT_EQ(cs[0].feature, Feature::Face);
   // Detection uses the tissue at the step start (the rest shape here).
   EXPECT_NEAR(cs[0].gap0, 0.5 - b.R - b.contact, 1e-14);
   EXPECT_FALSE(cs[0].active);  // gap > 0: no force
-  EXPECT_EQ(b.sim->pipeline()->contactCount(), 0);
+  EXPECT_EQ(b.sim->pipeline()->contactCount(b.state()), 0);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -601,19 +602,20 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
   // Three spheres pressed into a face, an edge and a corner (gap < 0: active contacts).
   Block b({3, 3, 3}, 3, 0.3, 0.5, 0.1);
   ASSERT_EQ(b.tools.size(), 3u);
-  b.tools[0]->p = Vector3d(0.6, 1.3, 2.35);                                 // face, gap -0.05
-  b.tools[1]->p = Vector3d(1.5, 0, 2) + 0.3 * Vector3d(0, -0.6, 0.8);       // edge, gap -0.1
-  b.tools[2]->p = Vector3d(2, 2, 0) + 0.2 * Vector3d(1, 1, -1).normalized();  // corner, gap -0.2
-  b.sim->pipeline()->detect();
+  State& st = b.state();
+  b.tools[0]->live(st).p = Vector3d(0.6, 1.3, 2.35);                                 // face, gap -0.05
+  b.tools[1]->live(st).p = Vector3d(1.5, 0, 2) + 0.3 * Vector3d(0, -0.6, 0.8);       // edge, gap -0.1
+  b.tools[2]->live(st).p = Vector3d(2, 2, 0) + 0.2 * Vector3d(1, 1, -1).normalized();  // corner, gap -0.2
+  b.sim->pipeline()->detect(st);
   SurfaceCollisionModel& s = *b.surface;
-  ASSERT_EQ(s.contacts().size(), 3u);
+  ASSERT_EQ(s.contacts(st).size(), 3u);
   std::set<Feature> kinds;
-  for (const Contact& c : s.contacts()) kinds.insert(c.feature);
+  for (const Contact& c : s.contacts(st)) kinds.insert(c.feature);
   EXPECT_EQ(kinds.size(), 3u);
   // SOFA's per-contact stiffness: the sphere's factor (10, the default) times the surface's (1),
   // over contactDistance plus the radius.
   const double k = 10 * 1.0 / (b.contact + b.R);
-  for (const Contact& c : s.contacts()) EXPECT_DOUBLE_EQ(c.k, k);
+  for (const Contact& c : s.contacts(st)) EXPECT_DOUBLE_EQ(c.k, k);
 
   const int n = b.x().cols();
   std::mt19937 rng(99);
@@ -623,15 +625,15 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
   const Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, n);
   auto force = [&](const Eigen::Matrix3Xd& at) {
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, n);
-    s.addForce(at, v, f);
+    s.addForce(st, at, v, f);
     return f;
   };
   const Eigen::Matrix3Xd f0 = force(x);
-  for (const Contact& c : s.contacts()) EXPECT_TRUE(c.active);
+  for (const Contact& c : s.contacts(st)) EXPECT_TRUE(c.active);
   EXPECT_GT(f0.norm(), 0.0);
   // The force is k g n per contact (on the tissue: along -n when penetrating), spread by weights.
   Vector3d total = Vector3d::Zero();
-  for (const Contact& c : s.contacts()) total += k * c.gap(x) * c.n;
+  for (const Contact& c : s.contacts(st)) total += k * c.gap(x) * c.n;
   EXPECT_LE((f0.rowwise().sum() - total).norm(), 1e-15);
 
   // The force is affine in x while the active set holds (gaps stay < -0.04 for steps of 1e-4),
@@ -647,7 +649,7 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
     J.col(j) = Eigen::Map<const Eigen::VectorXd>(d.data(), 3 * n);
   }
   force(x);  // back to the linearisation at x
-  for (const Contact& c : s.contacts()) ASSERT_TRUE(c.active);
+  for (const Contact& c : s.contacts(st)) ASSERT_TRUE(c.active);
 
   // addDForce: df += kFactor K dx, for random directions and kFactors.
   for (double kFactor : {1.0, -0.37}) {
@@ -655,7 +657,7 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
       Eigen::Matrix3Xd dx(3, n);
       for (int i = 0; i < n; ++i) dx.col(i) = Vector3d(g(rng), g(rng), g(rng));
       Eigen::Matrix3Xd df = Eigen::Matrix3Xd::Zero(3, n);
-      s.addDForce(dx, df, kFactor);
+      s.addDForce(st, dx, df, kFactor);
       const Eigen::VectorXd expected = kFactor * J * Eigen::Map<const Eigen::VectorXd>(dx.data(), 3 * n);
       EXPECT_LE((Eigen::Map<const Eigen::VectorXd>(df.data(), 3 * n) - expected).norm(), 1e-10 * dx.norm());
       // The central difference along dx itself (the dense directional derivative).
@@ -672,7 +674,7 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
   K.setPattern(n, pairs);
   for (double kFactor : {1.0, 2.5}) {
     K.setZero();
-    s.addStiffness(K, kFactor);
+    s.addStiffness(st, K, kFactor);
     const Eigen::MatrixXd dense = K.toDense();
     EXPECT_LE((dense - kFactor * J).norm(), 1e-10 * kFactor);
     EXPECT_LE((dense - dense.transpose()).norm(), 1e-15 * k * kFactor);  // round-off of entries ~k
@@ -689,14 +691,14 @@ TEST(CollisionPenalty, DerivativesMatchFiniteDifferencesAndAssembledMatrix) {
   EXPECT_EQ(rank, 3);
 
   // Contacts with positive gap exert nothing and add no stiffness.
-  b.tools[0]->p.z() += 0.2;
-  b.tools[1]->p += Vector3d(0, -0.3, 0.3);
-  b.tools[2]->p += Vector3d(0.3, 0.3, -0.3);
-  b.sim->pipeline()->detect();
-  ASSERT_EQ(s.contacts().size(), 3u);
+  b.tools[0]->live(st).p.z() += 0.2;
+  b.tools[1]->live(st).p += Vector3d(0, -0.3, 0.3);
+  b.tools[2]->live(st).p += Vector3d(0.3, 0.3, -0.3);
+  b.sim->pipeline()->detect(st);
+  ASSERT_EQ(s.contacts(st).size(), 3u);
   EXPECT_EQ(force(b.x()).norm(), 0.0);
   K.setZero();
-  s.addStiffness(K, 1.0);
+  s.addStiffness(st, K, 1.0);
   EXPECT_EQ(K.toDense().norm(), 0.0);
 }
 

@@ -10,6 +10,7 @@
 #include "builtin/Builtins.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
+#include "engine/Simulation.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
 
@@ -52,12 +53,13 @@ TEST(HexahedronFEM, UniaxialStretchGivesTheExactTractionOnEachFace) {
   const double E = 1000, eps = 1e-3;
   for (const auto& field : kFields) {
     auto scene = cube(field);
+    Simulation sim(*scene);
     ForceField& ff = forceField(*scene);
     const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
     Eigen::Matrix3Xd x = mo.x0;
     x.row(0) *= 1 + eps;
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 8);
-    ff.addForce(x, Eigen::Matrix3Xd::Zero(3, 8), f);
+    ff.addForce(sim.state(), x, Eigen::Matrix3Xd::Zero(3, 8), f);
     double right = 0, left = 0;
     for (int i = 0; i < 8; ++i) (mo.x0(0, i) > 0.5 ? right : left) += f(0, i);
     EXPECT_NEAR(right, -E * eps, 1e-9) << field;
@@ -73,19 +75,21 @@ TEST(HexahedronFEM, RigidMotionsGiveNoForceInTheCorotationalMethods) {
   for (size_t k = 1; k < kFields.size(); ++k) {
     if (k == 3) continue;  // the small-strain field is not invariant to finite rotations
     auto scene = cube(kFields[k]);
+    Simulation sim(*scene);
     ForceField& ff = forceField(*scene);
     const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
     Eigen::Matrix3Xd x = (R * mo.x0).colwise() + Eigen::Vector3d(5, -2, 1);
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 8);
-    ff.addForce(x, Eigen::Matrix3Xd::Zero(3, 8), f);
+    ff.addForce(sim.state(), x, Eigen::Matrix3Xd::Zero(3, 8), f);
     EXPECT_LT(f.cwiseAbs().maxCoeff(), 1e-10) << kFields[k];
   }
   // Translations give no force in any method.
   for (const auto& field : kFields) {
     auto scene = cube(field);
+    Simulation sim(*scene);
     const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 8);
-    forceField(*scene).addForce(mo.x0.colwise() + Eigen::Vector3d(1, 2, 3), Eigen::Matrix3Xd::Zero(3, 8), f);
+    forceField(*scene).addForce(sim.state(), mo.x0.colwise() + Eigen::Vector3d(1, 2, 3), Eigen::Matrix3Xd::Zero(3, 8), f);
     EXPECT_LT(f.cwiseAbs().maxCoeff(), 1e-10) << field;
   }
 }
@@ -93,14 +97,16 @@ TEST(HexahedronFEM, RigidMotionsGiveNoForceInTheCorotationalMethods) {
 TEST(HexahedronFEM, StiffnessIsTheDerivativeOfTheForceForSmallStrain) {
   // Finite differences of the linear field's force against addDForce (exact for a linear field).
   auto scene = cube(kFields[0]);
+  Simulation sim(*scene);
+  State& s = sim.state();
   ForceField& ff = forceField(*scene);
   const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
   const Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, 8);
   Eigen::Matrix3Xd f0 = v, f1 = v, df = v;
-  ff.addForce(mo.x0, v, f0);
+  ff.addForce(s, mo.x0, v, f0);
   const Eigen::Matrix3Xd dx = Eigen::Matrix3Xd::Random(3, 8) * 1e-3;
-  ff.addForce(mo.x0 + dx, v, f1);
-  ff.addDForce(dx, df, 1.0);
+  ff.addForce(s, mo.x0 + dx, v, f1);
+  ff.addDForce(s, dx, df, 1.0);
   EXPECT_LT((f1 - f0 - df).cwiseAbs().maxCoeff(), 1e-10);
 }
 

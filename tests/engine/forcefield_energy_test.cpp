@@ -38,6 +38,7 @@ std::unique_ptr<Scene> buildScene(const std::string& method) {
 void checkConservative(const std::string& method, double relTol) {
   auto scene = buildScene(method);
   auto* mo = scene->all<MechanicalObject>()[0];
+  Simulation sim(*scene);
   std::mt19937 rng(7);
   std::normal_distribution<double> n01;
   Eigen::Matrix3Xd x = mo->x0;
@@ -48,7 +49,7 @@ void checkConservative(const std::string& method, double relTol) {
   ASSERT_EQ(fields.size(), 3u);  // mass (gravity), FEM, constant force
   for (ForceField* ff : fields) {
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, x.cols());
-    ff->addForce(x, v, f);
+    ff->addForce(sim.state(), x, v, f);
     Eigen::Matrix3Xd g(3, x.cols());
     const double h = 1e-7;
     for (int i = 0; i < x.cols(); ++i)

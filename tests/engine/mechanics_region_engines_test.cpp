@@ -72,13 +72,13 @@ TEST(RegionEngines, SphereSelectsTheTetrahedraWithEveryVertexInside) {
     ASSERT_FALSE(a.step());
     ASSERT_FALSE(b.step());
   }
-  const Eigen::Matrix3Xd& xa = byHand->all<MechanicalObject>().front()->x;
-  const Eigen::Matrix3Xd& xb = linked->all<MechanicalObject>().front()->x;
+  const Eigen::Matrix3Xd& xa = byHand->all<MechanicalObject>().front()->x(a.state());
+  const Eigen::Matrix3Xd& xb = linked->all<MechanicalObject>().front()->x(b.state());
   EXPECT_EQ((xa - xb).cwiseAbs().maxCoeff(), 0.0);
   // And the softer region does move the block: against the plain one, the top sags more.
   Simulation p(*plain);
   for (int i = 0; i < 50; ++i) ASSERT_FALSE(p.step());
-  const Eigen::Matrix3Xd& xp = plain->all<MechanicalObject>().front()->x;
+  const Eigen::Matrix3Xd& xp = plain->all<MechanicalObject>().front()->x(p.state());
   EXPECT_LT(xb.row(2).minCoeff(), xp.row(2).minCoeff() + 1e-9);
   EXPECT_GT((xb - xp).cwiseAbs().maxCoeff(), 1e-6);
 }

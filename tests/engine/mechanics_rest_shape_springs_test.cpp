@@ -31,11 +31,13 @@ TEST(RestShapeSprings, ForceStiffnessAndEnergyFollowTheDefinition) {
   for (ForceField* f : scene->all<ForceField>())
     if (dynamic_cast<Component*>(f)->name() == "springs") springs = f;
   ASSERT_NE(springs, nullptr);
+  Simulation sim(*scene);
+  State& s = sim.state();
   Eigen::Matrix3Xd x = springs->mstate().x0;
   x.col(0) += Eigen::Vector3d(0.1, -0.2, 0.3);
   x.col(2) += Eigen::Vector3d(0.0, 0.5, 0.0);
   Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 3), v = Eigen::Matrix3Xd::Zero(3, 3);
-  springs->addForce(x, v, f);
+  springs->addForce(s, x, v, f);
   EXPECT_TRUE(f.col(0).isApprox(-10 * Eigen::Vector3d(0.1, -0.2, 0.3)));
   EXPECT_TRUE(f.col(1).isZero());
   EXPECT_TRUE(f.col(2).isApprox(-20 * Eigen::Vector3d(0.0, 0.5, 0.0)));
@@ -43,10 +45,10 @@ TEST(RestShapeSprings, ForceStiffnessAndEnergyFollowTheDefinition) {
   // K dx against a central difference of the force.
   const Eigen::Matrix3Xd dx = Eigen::Matrix3Xd::Random(3, 3);
   Eigen::Matrix3Xd df = Eigen::Matrix3Xd::Zero(3, 3), fp = Eigen::Matrix3Xd::Zero(3, 3), fm = fp;
-  springs->addDForce(dx, df, 1.0);
+  springs->addDForce(s, dx, df, 1.0);
   const double h = 1e-6;
-  springs->addForce(x + h * dx, v, fp);
-  springs->addForce(x - h * dx, v, fm);
+  springs->addForce(s, x + h * dx, v, fp);
+  springs->addForce(s, x - h * dx, v, fm);
   EXPECT_LT((df - (fp - fm) / (2 * h)).cwiseAbs().maxCoeff(), 1e-8);
 }
 
@@ -56,8 +58,8 @@ TEST(RestShapeSprings, LoadedNodesSettleWhereTheSpringsCarryTheLoad) {
   Simulation sim(*scene);
   for (int i = 0; i < 3000; ++i) ASSERT_FALSE(sim.step());
   const MechanicalObject& m = *scene->all<MechanicalObject>().front();
-  EXPECT_NEAR(m.x(2, 0), -1.0 / 10, 1e-6);
-  EXPECT_NEAR(m.x(2, 2), -2.0 / 20, 1e-6);
+  EXPECT_NEAR(m.x(sim.state())(2, 0), -1.0 / 10, 1e-6);
+  EXPECT_NEAR(m.x(sim.state())(2, 2), -2.0 / 20, 1e-6);
 }
 
 }  // namespace

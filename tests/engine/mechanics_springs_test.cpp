@@ -9,6 +9,7 @@
 #include "builtin/Builtins.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
+#include "engine/Simulation.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
 #include "io/scene/SceneReader.h"
@@ -57,11 +58,13 @@ TEST(MeshSprings, ForceIsMinusTheEnergyGradientAndStiffnessItsDerivative) {
                         <MeshSpringForceField stiffness="50"/>)");
   ForceField& ff = springs(*scene);
   const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+  Simulation sim(*scene);
+  State& s = sim.state();
   std::srand(7);
   const Eigen::Matrix3Xd x = mo.x0 + 0.1 * Eigen::Matrix3Xd::Random(3, 8);
   const Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, 8);
   Eigen::Matrix3Xd f = v;
-  ff.addForce(x, v, f);
+  ff.addForce(s, x, v, f);
   const double h = 1e-6;
   for (int i = 0; i < 8; ++i)
     for (int c = 0; c < 3; ++c) {
@@ -74,9 +77,9 @@ TEST(MeshSprings, ForceIsMinusTheEnergyGradientAndStiffnessItsDerivative) {
   // K dx against the change of the force (linearised at x by addForce above).
   const Eigen::Matrix3Xd dx = 1e-6 * Eigen::Matrix3Xd::Random(3, 8);
   Eigen::Matrix3Xd f2 = v, f1 = v, df = v;
-  ff.addForce(x + dx, v, f2);
-  ff.addForce(x, v, f1);  // linearise at x
-  ff.addDForce(dx, df, 1.0);
+  ff.addForce(s, x + dx, v, f2);
+  ff.addForce(s, x, v, f1);  // linearise at x
+  ff.addDForce(s, dx, df, 1.0);
   EXPECT_LT((f2 - f1 - df).cwiseAbs().maxCoeff(), 1e-9);
   // Internal forces: they sum to zero.
   EXPECT_LT(f.rowwise().sum().norm(), 1e-10);

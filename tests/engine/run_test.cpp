@@ -17,9 +17,11 @@
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "tests/support/SceneFiles.h"
+#include "tests/support/TempDir.h"
 
 using namespace viscera;
 using viscera::test_support::readSceneWithoutExports;
+using viscera::test_support::TempDir;
 
 namespace {
 
@@ -55,7 +57,7 @@ TEST(Run, ResultFiguresMatchTheSimulation) {
   ASSERT_EQ(r.objects.size(), 1u);  // the instrument (Rigid3d) is a RigidObject, not an object
   const MechanicalObject& dofs = *scene->all<MechanicalObject>().at(0);
   EXPECT_EQ(r.objects[0].nodes, 325);
-  EXPECT_DOUBLE_EQ(r.objects[0].maxDisplacement, (dofs.x - dofs.x0).colwise().norm().maxCoeff());
+  EXPECT_DOUBLE_EQ(r.objects[0].maxDisplacement, (dofs.x(sim.state()) - dofs.x0).colwise().norm().maxCoeff());
   ASSERT_EQ(r.instruments.size(), 1u);
   const auto& in = r.instruments[0];
   ASSERT_EQ(in.history.size(), 300u);
@@ -67,7 +69,7 @@ TEST(Run, ResultFiguresMatchTheSimulation) {
   }
   EXPECT_EQ(in.peakForce, peak);
   EXPECT_EQ(in.stepsInContact, contact);
-  EXPECT_TRUE(in.last.force == scene->all<RigidObject>()[0]->force);
+  EXPECT_TRUE(in.last.force == scene->all<RigidObject>()[0]->live(sim.state()).force);
   ASSERT_TRUE(r.contact.has_value());
   EXPECT_EQ(r.contact->response, "constraint");
   // The summary and wrench table carry the same figures.
@@ -84,9 +86,9 @@ TEST(Run, ACorrectionChangesTheStateBeforeMappingsAndObserversSeeIt) {
   struct Hold : Correction {
     MechanicalObject& m;
     explicit Hold(MechanicalObject& mo) : m(mo) {}
-    void correct(double, int) override {
-      m.x.col(1) = m.x0.col(1);
-      m.v.col(1).setZero();
+    void correct(State& s, double, int) const override {
+      m.x(s).col(1) = m.x0.col(1);
+      m.v(s).col(1).setZero();
     }
   } hold(dofs);
   sim.addCorrection(hold);
@@ -94,7 +96,7 @@ TEST(Run, ACorrectionChangesTheStateBeforeMappingsAndObserversSeeIt) {
     const MechanicalObject& m;
     double worst = 0;
     explicit Watch(const MechanicalObject& mo) : m(mo) {}
-    void step(const Simulation&) override { worst = std::max(worst, (m.x.col(1) - m.x0.col(1)).norm()); }
+    void step(const Simulation& sim) override { worst = std::max(worst, (m.x(sim.state()).col(1) - m.x0.col(1)).norm()); }
   } watch(dofs);
   RunOptions o;
   o.steps = 50;
@@ -102,7 +104,7 @@ TEST(Run, ACorrectionChangesTheStateBeforeMappingsAndObserversSeeIt) {
   ASSERT_TRUE(run(sim, o).ok());
   EXPECT_EQ(watch.worst, 0.0);
   // Node 0 falls freely: implicit Euler's z after n steps of h under g is -g h^2 n(n+1)/2.
-  EXPECT_NEAR(dofs.x(2, 0), -10 * 0.01 * 0.01 * 50 * 51 / 2, 1e-9);
+  EXPECT_NEAR(dofs.x(sim.state())(2, 0), -10 * 0.01 * 0.01 * 50 * 51 / 2, 1e-9);
 }
 
 TEST(Run, AnInactiveNodeIsNotSimulatedAndTheRunSaysSo) {
@@ -138,8 +140,9 @@ Eigen::Matrix3Xd finalPositions(const SceneDesc& desc, int steps) {
   RunOptions o;
   o.steps = steps;
   o.threads = 1;
-  EXPECT_TRUE(run(*scene, o).ok());
-  return scene->all<MechanicalObject>().at(0)->x;
+  const RunResult r = run(*scene, o);
+  EXPECT_TRUE(r.ok());
+  return scene->all<MechanicalObject>().at(0)->x(*r.finalState);
 }
 
 TEST(Run, VariantsInThreadsGiveExactlyTheirSequentialResults) {
@@ -166,6 +169,62 @@ TEST(Run, VariantsInThreadsGiveExactlyTheirSequentialResults) {
   td.join();
   EXPECT_TRUE(c == soloBase);
   EXPECT_TRUE(d == soloBase);
+}
+
+// One built model (the components, their precomputation and the shared compliance at rest), several
+// states: simulations of it step at once in threads, or in turn on one thread, and each gives
+// exactly what it gives alone.
+TEST(Run, OneModelStepsInSeveralSimulationsAtOnce) {
+  auto scene = buildScene(readSceneWithoutExports("scenes/gel_phantom_coarse.xml"));
+  const int steps = 400;
+  RunOptions o;
+  o.steps = steps;
+  o.threads = 1;
+  State alone;
+  {
+    Simulation sim(*scene);
+    const RunResult r = run(sim, o);
+    ASSERT_TRUE(r.ok());
+    ASSERT_GT(r.instruments.at(0).stepsInContact, 0);  // the instrument reaches the tissue
+    alone = sim.captureState();
+  }
+  Simulation a(*scene), b(*scene);
+  std::thread ta([&] { run(a, o); });
+  std::thread tb([&] { run(b, o); });
+  ta.join();
+  tb.join();
+  EXPECT_TRUE(a.captureState() == alone);
+  EXPECT_TRUE(b.captureState() == alone);
+
+  // In turn on one thread, a step each: the states do not leak into each other.
+  Simulation c(*scene), d(*scene);
+  for (int i = 0; i < steps; ++i) {
+    ASSERT_FALSE(c.step());
+    ASSERT_FALSE(d.step());
+  }
+  EXPECT_TRUE(c.captureState() == alone);
+  EXPECT_TRUE(d.captureState() == alone);
+}
+
+// A scene's observers write its outputs: a second simulation of a scene that has some is refused.
+TEST(Run, AModelWithOutputsServesOneSimulationAtATime) {
+  auto scene = buildScene(io::parseSceneText(kDropScene, "drop.xml"));
+  ASSERT_TRUE(scene->all<Observer>().empty());
+  Simulation one(*scene), two(*scene);  // no outputs: fine
+  auto exporting = buildScene(io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom_coarse.xml"));
+  TempDir tmp;
+  exporting->setOutputDirectory(tmp.path().string());
+  ASSERT_FALSE(exporting->all<Observer>().empty());
+  {
+    Simulation first(*exporting);
+    try {
+      Simulation second(*exporting);
+      FAIL() << "a second simulation of a scene with an exporter was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("already serves another simulation"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(Simulation(*exporting));  // the first one has ended
 }
 
 }  // namespace

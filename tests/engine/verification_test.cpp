@@ -165,7 +165,7 @@ PatchResult patchTest(const std::string& method, const Matrix3d& F, const Vector
   EXPECT_FALSE(bad) << bad->str();
   PatchResult res;
   res.interior = static_cast<int>(interior.size());
-  for (int i : interior) res.nodeError = std::max(res.nodeError, (r.mo->x.col(i) - xAffine.col(i)).norm());
+  for (int i : interior) res.nodeError = std::max(res.nodeError, (r.mo->x(r.sim->state()).col(i) - xAffine.col(i)).norm());
   // The exact stress: linear stress of the strain sym(Q^T F) - I, where Q is the polar rotation
   // of F (for `small`, Q = I: the strain is sym(F) - I).
   Eigen::JacobiSVD<Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -173,13 +173,13 @@ PatchResult patchTest(const std::string& method, const Matrix3d& F, const Vector
   const Matrix3d QtF = Q.transpose() * F;
   const Matrix3d sigma = linearStress(0.5 * (QtF + QtF.transpose()) - Matrix3d::Identity(), E, nu);
   const double scale = std::max(sigma.norm(), 1e-300);
-  const Eigen::VectorXd vm = r.fem->vonMises(r.mo->x);
+  const Eigen::VectorXd vm = r.fem->vonMises(r.mo->x(r.sim->state()));
   const TetList& T = r.fem->tetrahedra();
   EXPECT_EQ(T.cols(), 6 * 27);
   const fem::Method m = r.fem->method();
   for (int e = 0; e < T.cols(); ++e) {
     const fem::ElementRest rest = fem::restElement(m, gather(X, T, e), fem::Lame::fromYoungPoisson(E, nu));
-    const fem::Mat34 x = gather(r.mo->x, T, e);
+    const fem::Mat34 x = gather(r.mo->x(r.sim->state()), T, e);
     const Matrix3d R = fem::frame(m, x);
     // Element stress, turned back to the world frame of the rest configuration.
     const Matrix3d R0 = fem::frame(m, gather(X, T, e));
@@ -275,9 +275,9 @@ struct Beam {
     return t;
   }
   // Mean y displacement of the tip face.
-  double tipY(const MechanicalObject& mo) const {
+  double tipY(const State& state, const MechanicalObject& mo) const {
     double s = 0;
-    for (int i : tipNodes()) s += mo.x(1, i) - mo.x0(1, i);
+    for (int i : tipNodes()) s += mo.x(state)(1, i) - mo.x0(1, i);
     return s / tipNodes().size();
   }
 };
@@ -300,12 +300,13 @@ double staticTipDeflection(const Beam& b, double P, const std::string& method) {
   // The applied load is exactly P: the sum of the forces of every field other than the elastic
   // one (and the mass, without gravity here) at rest, to 1e-12.
   Matrix3Xd f = Matrix3Xd::Zero(3, r.mo->size());
+  State& s = r.sim->state();
   for (ForceField* ff : r.scene->all<ForceField>())
-    if (!dynamic_cast<TetrahedronFEMForceField*>(ff)) ff->addForce(r.mo->x, r.mo->v, f);
+    if (!dynamic_cast<TetrahedronFEMForceField*>(ff)) ff->addForce(s, r.mo->x(s), r.mo->v(s), f);
   EXPECT_LT((f.rowwise().sum() - Vector3d(0, -P, 0)).norm(), 1e-12 * P);
   auto bad = r.sim->step();
   EXPECT_FALSE(bad) << bad->str();
-  return -b.tipY(*r.mo);
+  return -b.tipY(s, *r.mo);
 }
 
 }  // namespace
@@ -381,14 +382,14 @@ std::vector<double> tipHistory(const Beam& b, const std::string& method, double 
   EXPECT_EQ(masses.size(), 1u);
   const double total = b.rho * b.A() * b.L;
   EXPECT_NEAR(masses.at(0)->nodeMass().sum(), total, 1e-12 * total);
-  std::vector<double> y{b.tipY(*r.mo)};
+  std::vector<double> y{b.tipY(r.sim->state(), *r.mo)};
   for (int s = 0; s < steps; ++s) {
     auto bad = r.sim->step();
     if (bad) {
       ADD_FAILURE() << bad->str();
       break;
     }
-    y.push_back(b.tipY(*r.mo));
+    y.push_back(b.tipY(r.sim->state(), *r.mo));
   }
   return y;
 }
@@ -493,7 +494,7 @@ TEST(Verification, FreeFallIsExactForImplicitEuler) {
   </Node>
 </Node>)";
     Sim r = build(xml);
-    const Matrix3Xd x0 = r.mo->x;
+    const Matrix3Xd x0 = r.mo->x(r.sim->state());
     for (int s = 0; s < N; ++s) {
       auto bad = r.sim->step();
       ASSERT_FALSE(bad) << bad->str();
@@ -503,8 +504,8 @@ TEST(Verification, FreeFallIsExactForImplicitEuler) {
     const Vector3d dxExact = v0 * t + g * dt * dt * N * (N + 1) / 2.0;
     double ev = 0, ex = 0;
     for (int i = 0; i < r.mo->size(); ++i) {
-      ev = std::max(ev, (r.mo->v.col(i) - vExact).norm() / vExact.norm());
-      ex = std::max(ex, (r.mo->x.col(i) - x0.col(i) - dxExact).norm() / dxExact.norm());
+      ev = std::max(ev, (r.mo->v(r.sim->state()).col(i) - vExact).norm() / vExact.norm());
+      ex = std::max(ex, (r.mo->x(r.sim->state()).col(i) - x0.col(i) - dxExact).norm() / dxExact.norm());
     }
     std::printf("  %s, %s: velocity error %.2e, position error %.2e\n", c.method, c.linear, ev, ex);
     EXPECT_LT(ev, c.tol) << c.method << " " << c.linear;
@@ -565,9 +566,9 @@ TEST(Verification, CorotationalBeamIsRotationInvariant) {
   const Matrix3Xd zero = Matrix3Xd::Zero(3, X.cols());
   for (const char* m : {"small", "large", "polar"}) {
     Sim r = scene(m, xRot, zero, 0.01);
-    const double vm = r.fem->vonMises(r.mo->x).maxCoeff();
+    const double vm = r.fem->vonMises(r.mo->x(r.sim->state())).maxCoeff();
     for (int s = 0; s < 10; ++s) ASSERT_FALSE(r.sim->step());
-    const double moved = (r.mo->x - xRot).cwiseAbs().maxCoeff();
+    const double moved = (r.mo->x(r.sim->state()) - xRot).cwiseAbs().maxCoeff();
     std::printf("  rotated placement, %s: max von Mises / E %.2e, moved %.2e in 10 steps\n", m, vm / E, moved);
     if (std::string(m) == "small") {
       EXPECT_GT(vm, 0.3 * E);
@@ -588,11 +589,12 @@ TEST(Verification, CorotationalBeamIsRotationInvariant) {
       auto bad = r.sim->step();
       ASSERT_FALSE(bad) << m << ": " << bad->str();
     }
-    const double strain = maxEdgeStrain(r.fem->tetrahedra(), X, r.mo->x);
-    const double vm = r.fem->vonMises(r.mo->x).maxCoeff();
+    const Matrix3Xd& x = r.mo->x(r.sim->state());
+    const double strain = maxEdgeStrain(r.fem->tetrahedra(), X, x);
+    const double vm = r.fem->vonMises(x).maxCoeff();
     // Angle turned by the beam axis (root face centre -> tip face centre) about x.
     const int face = n[0] * n[1];
-    const Vector3d axis = r.mo->x.rightCols(face).rowwise().mean() - r.mo->x.leftCols(face).rowwise().mean();
+    const Vector3d axis = x.rightCols(face).rowwise().mean() - x.leftCols(face).rowwise().mean();
     const double turned = std::atan2(-axis.y(), axis.z());  // rotation about +x takes +z towards -y
     std::printf("  spinning, %s: turned %.4f rad (omega t = %.4f), max edge strain %.2e, max von Mises / E %.2e\n", m, turned,
                 omega * steps * dt, strain, vm / E);

@@ -85,10 +85,10 @@ TEST(SofaSceneForms, IncludeOfAGroupMergesIntoTheNodeAndTakesTheIncludesAttribut
   const MechanicalObject& mo = object(*scene, "dofs");
   ASSERT_EQ(mo.size(), 4);
   // scale 2 (one factor for all axes), then dx 10.
-  EXPECT_DOUBLE_EQ(mo.x(0, 1), 12.0);
-  EXPECT_DOUBLE_EQ(mo.x(1, 2), 2.0);
-  EXPECT_DOUBLE_EQ(mo.x(2, 3), 2.0);
-  EXPECT_DOUBLE_EQ(mo.x(0, 0), 10.0);
+  EXPECT_DOUBLE_EQ(mo.xInit(0, 1), 12.0);
+  EXPECT_DOUBLE_EQ(mo.xInit(1, 2), 2.0);
+  EXPECT_DOUBLE_EQ(mo.xInit(2, 3), 2.0);
+  EXPECT_DOUBLE_EQ(mo.xInit(0, 0), 10.0);
 }
 
 TEST(SofaSceneForms, IncludeOfANamedNodeAddsARenamedChildAndNotesUnmatchedAttributes) {
@@ -104,7 +104,7 @@ TEST(SofaSceneForms, IncludeOfANamedNodeAddsARenamedChildAndNotesUnmatchedAttrib
   scene->init();
   ASSERT_EQ(scene->root().children().size(), 1u);
   EXPECT_EQ(scene->root().children()[0]->name(), "Ball 1");
-  EXPECT_DOUBLE_EQ(object(*scene, "dofs").x(1, 0), -10.0);
+  EXPECT_DOUBLE_EQ(object(*scene, "dofs").xInit(1, 0), -10.0);
   EXPECT_TRUE(hasNote(*scene, "include.contactStiffness matches no attribute")) << scene->notes().size();
 }
 
@@ -167,9 +167,9 @@ TEST(SofaSceneForms, LegacyGridNamesAndSubNodeSettings) {
   const MechanicalObject& mo = object(*scene, "dofs");
   ASSERT_EQ(mo.size(), 12);
   // Node 1 is (0, 0, 0) before the rotation of 90 degrees about x; the last node (1, 1, 2) goes to (1, -2, 1).
-  EXPECT_NEAR(mo.x(0, 11), 1.0, 1e-12);
-  EXPECT_NEAR(mo.x(1, 11), -2.0, 1e-12);
-  EXPECT_NEAR(mo.x(2, 11), 1.0, 1e-12);
+  EXPECT_NEAR(mo.xInit(0, 11), 1.0, 1e-12);
+  EXPECT_NEAR(mo.xInit(1, 11), -2.0, 1e-12);
+  EXPECT_NEAR(mo.xInit(2, 11), 1.0, 1e-12);
   // The root's dt and gravity hold for the whole scene, as in SOFA, with a note.
   EXPECT_DOUBLE_EQ(scene->dt(), 0.01);
   EXPECT_DOUBLE_EQ(scene->gravity().y(), -9.81);
@@ -195,7 +195,7 @@ TEST(SofaSceneForms, SurfaceLoadersFeedAMechanicalObject) {
   scene->init();
   const MechanicalObject& mo = object(*scene, "dofs");
   ASSERT_EQ(mo.size(), 4);
-  EXPECT_DOUBLE_EQ(mo.x(2, 3), 6.0);
+  EXPECT_DOUBLE_EQ(mo.xInit(2, 3), 6.0);
   // handleSeams (texture seams) is accepted with a note.
   EXPECT_TRUE(hasNote(*scene, "MeshOBJLoader.handleSeams does not change the physics"));
 }
@@ -294,13 +294,14 @@ TEST(SofaSceneForms, SpheresMappedOnABodyFollowItThroughPositionalLinks) {
   for (int i = 0; i < 5; ++i) ASSERT_FALSE(sim.step());
   const MechanicalObject& dofs = object(*scene, "dofs");
   const MechanicalObject& spheres = object(*scene, "spheres");
+  const State& s = sim.state();
   ASSERT_EQ(spheres.size(), 2);
-  EXPECT_GT(std::abs(dofs.x(2, 3) - 1.0), 1e-4);  // the free node has moved
+  EXPECT_GT(std::abs(dofs.x(s)(2, 3) - 1.0), 1e-4);  // the free node has moved
   // Barycentric coordinates (1/4 each) and node 3 itself, for positions and velocities.
-  EXPECT_LT((spheres.x.col(0) - dofs.x.rowwise().mean()).norm(), 1e-12);
-  EXPECT_LT((spheres.v.col(0) - dofs.v.rowwise().mean()).norm(), 1e-12);
-  EXPECT_LT((spheres.x.col(1) - dofs.x.col(3)).norm(), 1e-12);
-  EXPECT_LT((spheres.v.col(1) - dofs.v.col(3)).norm(), 1e-12);
+  EXPECT_LT((spheres.x(s).col(0) - dofs.x(s).rowwise().mean()).norm(), 1e-12);
+  EXPECT_LT((spheres.v(s).col(0) - dofs.v(s).rowwise().mean()).norm(), 1e-12);
+  EXPECT_LT((spheres.x(s).col(1) - dofs.x(s).col(3)).norm(), 1e-12);
+  EXPECT_LT((spheres.v(s).col(1) - dofs.v(s).col(3)).norm(), 1e-12);
 
   // A positional link that reaches past the node's first object, or names a skipped one.
   std::string e = errorOf([&] { sceneWith(R"(<SphereLoader filename="body.sph"/><MechanicalObject position="@[-2].position"/>)"); });
@@ -361,6 +362,7 @@ TEST(SofaSceneForms, PointsFollowAGridThroughTrilinearCoordinates) {
   for (int i = 0; i < 20; ++i) ASSERT_FALSE(sim.step());
   const MechanicalObject& dofs = object(*scene, "dofs");
   const MechanicalObject& points = object(*scene, "points");
+  const State& s = sim.state();
   // Node (i, j, k) of the 3 x 3 x 3 grid is i + 3 (j + 3 k); cell (ci, cj, ck), local u in [0, 1]^3.
   auto trilinear = [&](const Eigen::Matrix3Xd& x, int ci, int cj, int ck, Eigen::Vector3d u) {
     Eigen::Vector3d p = Eigen::Vector3d::Zero();
@@ -371,12 +373,12 @@ TEST(SofaSceneForms, PointsFollowAGridThroughTrilinearCoordinates) {
     }
     return p;
   };
-  EXPECT_GT((dofs.x - dofs.x0).norm(), 1e-3);  // the body has sagged
-  EXPECT_LT((points.x.col(0) - trilinear(dofs.x, 0, 0, 0, Eigen::Vector3d(0.5, 0.5, 0.5))).norm(), 1e-12);
-  EXPECT_LT((points.x.col(1) - trilinear(dofs.x, 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
-  EXPECT_LT((points.v.col(1) - trilinear(dofs.v, 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
+  EXPECT_GT((dofs.x(s) - dofs.x0).norm(), 1e-3);  // the body has sagged
+  EXPECT_LT((points.x(s).col(0) - trilinear(dofs.x(s), 0, 0, 0, Eigen::Vector3d(0.5, 0.5, 0.5))).norm(), 1e-12);
+  EXPECT_LT((points.x(s).col(1) - trilinear(dofs.x(s), 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
+  EXPECT_LT((points.v(s).col(1) - trilinear(dofs.v(s), 1, 0, 1, Eigen::Vector3d(0.5, 0.25, 0.8))).norm(), 1e-12);
   // Outside, beyond x = 2: the nearest cell's coordinates run past 1.
-  EXPECT_LT((points.x.col(2) - trilinear(dofs.x, 1, 0, 0, Eigen::Vector3d(1.2, 1.0, 1.0))).norm(), 1e-9);
+  EXPECT_LT((points.x(s).col(2) - trilinear(dofs.x(s), 1, 0, 0, Eigen::Vector3d(1.2, 1.0, 1.0))).norm(), 1e-9);
 }
 
 // Sphere sets on two deformable bodies are accepted while apart; when they touch, the step fails
@@ -456,7 +458,7 @@ TEST(SofaSceneForms, GridMappingLocatesPointsBeforeThePlacement) {
   auto scene = buildScene(io::readScene(dir / "scene.scn"));
   Simulation sim(*scene);
   ASSERT_FALSE(sim.step());
-  EXPECT_LT((object(*scene, "points").x.col(0) - Eigen::Vector3d(10.5, 0.25, 0.75)).norm(), 1e-12);
+  EXPECT_LT((object(*scene, "points").x(sim.state()).col(0) - Eigen::Vector3d(10.5, 0.25, 0.75)).norm(), 1e-12);
 }
 
 // SparseGridTopology keeps the grid cells a closed surface meets or encloses. For the octahedron
@@ -532,7 +534,7 @@ TEST(SofaSceneForms, ACollisionSurfaceOnAMappedStateActsOnTheBody) {
     auto scene = buildScene(io::parseSceneText(sceneWith(surface), "mapped_surface.xml"));
     Simulation sim(*scene);
     for (int i = 0; i < 20; ++i) EXPECT_FALSE(sim.step());
-    return object(*scene, "dofs").x;
+    return object(*scene, "dofs").x(sim.state());
   };
   const Eigen::Matrix3Xd direct = run(R"(<TriangleCollisionModel contactStiffness="100"/>)");
   const Eigen::Matrix3Xd mapped = run(R"(<Node name="surf"><MechanicalObject name="surfDofs" src="@../grid"/>

@@ -76,8 +76,8 @@ TEST(EspmDriver, CaptureReplaysTheJointLogToTheEncoderResolution) {
   EXPECT_EQ(crc.values[0], 25);
   EXPECT_EQ(packets.values[0], std::floor(log.end() * 1000) + 1 - 25);
 
-  const auto& ta = *fromCapture->all<viscera::RigidObject>().front();
-  const auto& tb = *fromLog->all<viscera::RigidObject>().front();
+  const auto& ta = fromCapture->all<viscera::RigidObject>().front()->live(a.state());
+  const auto& tb = fromLog->all<viscera::RigidObject>().front()->live(b.state());
   double worst = 0;
   for (int k = 0; k < 1500; ++k) {
     ASSERT_FALSE(a.step().has_value());

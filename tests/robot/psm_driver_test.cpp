@@ -92,10 +92,10 @@ TEST(PsmJointDriver, CheckPoseThroughTheTransformInSceneUnits) {
   viscera::Simulation sim(*s);
   const Eigen::Vector3d expected = T * Eigen::Vector3d(0, 0, -113.5) + Eigen::Vector3d(1, 2, 3);
   // Tolerance: a few ulps of the ~200 mm coordinates through the 6-joint chain and the transform.
-  EXPECT_LT((tool(*s).p - expected).norm(), 1e-11);
+  EXPECT_LT((tool(*s).live(sim.state()).p - expected).norm(), 1e-11);
   ASSERT_FALSE(sim.step().has_value());
-  EXPECT_LT((tool(*s).p - expected).norm(), 1e-11);
-  EXPECT_LT(tool(*s).v.norm(), 1e-9);
+  EXPECT_LT((tool(*s).live(sim.state()).p - expected).norm(), 1e-11);
+  EXPECT_LT(tool(*s).live(sim.state()).v.norm(), 1e-9);
 }
 
 // Between two samples that differ in yaw and pitch only, the joints are interpolated, so the tip
@@ -114,12 +114,12 @@ TEST(PsmJointDriver, FollowsTheKinematicPathBetweenSamples) {
   q1 << 0.6, 0.4, 0.15, 0.3, 0.2, -0.1;
   const double radius = psm.tipPose(q0).translation().norm();
   const Eigen::Vector3d chordStart = psm.tipPose(q0).translation(), chordEnd = psm.tipPose(q1).translation();
-  Eigen::Vector3d previous = tool(*s).p;
+  Eigen::Vector3d previous = tool(*s).live(sim.state()).p;
   double worstRadius = 0, chordGap = 0;
   for (int k = 1; k <= 20; ++k) {
     ASSERT_FALSE(sim.step().has_value());
     const double t = 0.05 * k;
-    const RigidObject& b = tool(*s);
+    const RigidObject::Live& b = tool(*s).live(sim.state());
     worstRadius = std::max(worstRadius, std::abs(b.p.norm() - radius));
     chordGap = std::max(chordGap, radius - (chordStart + t * (chordEnd - chordStart)).norm());
     // The pose is the forward kinematics of the linearly interpolated joints.

@@ -27,7 +27,7 @@ TEST(PsmPalpationScene, InstrumentFollowsTheJointLogAndIndentsThePhantom) {
   auto scene = viscera::buildScene(viscera::io::readScene(source("scenes/psm_palpation.xml")));
   scene->setOutputDirectory(out.str());  // the scene's VTKExporter writes here, not beside the scene
   viscera::Simulation sim(*scene);
-  const viscera::RigidObject& tool = *scene->all<viscera::RigidObject>().front();
+  const viscera::RigidObject::Live& tool = scene->all<viscera::RigidObject>().front()->live(sim.state());
   const viscera::MechanicalObject& tissue = *scene->all<viscera::MechanicalObject>().front();
   const auto log = viscera::robot::readJointCsv(source("scenes/psm_palpation_joints.csv"), 6);
   const auto psm = viscera::robot::psmLargeNeedleDriver();
@@ -44,7 +44,7 @@ TEST(PsmPalpationScene, InstrumentFollowsTheJointLogAndIndentsThePhantom) {
     worstPosition = std::max(worstPosition, (tool.p - expected).norm());
     worstAngle = std::max(worstAngle, Eigen::AngleAxisd(tool.q.toRotationMatrix() * (T.linear() * tip.linear()).transpose()).angle());
     contactSteps += tool.contacts > 0;
-    deepest = std::max(deepest, (tissue.x - tissue.x0).colwise().norm().maxCoeff());
+    deepest = std::max(deepest, (tissue.x(sim.state()) - tissue.x0).colwise().norm().maxCoeff());
   }
   sim.end();
   // Round-off of ~200 mm coordinates through the chain and the transform.

@@ -77,7 +77,7 @@ Outcome simulate(const TempDir& dir, bool negative, const std::string& method) {
     for (int i = 0; i < 20 && r.failure.empty(); ++i)
       if (auto f = sim.step()) r.failure = f->str();
     const MechanicalObject& m = *s->all<MechanicalObject>().at(0);
-    r.x = m.x;
+    r.x = m.x(sim.state());
     r.x0 = m.x0;
   } catch (const std::exception& e) {
     r.failure = e.what();

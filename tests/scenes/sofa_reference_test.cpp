@@ -70,7 +70,7 @@ Result runMethod(const std::string& method) {
     sim.end();
     auto states = scene->all<MechanicalObject>();
     if (states.size() != 1) res.failure += " expected one MechanicalObject, got " + std::to_string(states.size());
-    else res.ours = states[0]->x;
+    else res.ours = states[0]->x(sim.state());
   } catch (const std::exception& e) {
     res.failure = e.what();
   }

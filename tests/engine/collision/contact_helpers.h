@@ -29,11 +29,11 @@ inline SceneRun buildRun(const std::string& xml, const std::string& file = "inli
 }
 
 // Sum of the forces on the tissue over the contacts of the last step (active surface models).
-inline Eigen::Vector3d contactForceOnTissue(const CollisionPipeline& pipe) {
+inline Eigen::Vector3d contactForceOnTissue(const CollisionPipeline& pipe, const State& state) {
   Eigen::Vector3d f = Eigen::Vector3d::Zero();
   for (const SurfaceCollisionModel* s : pipe.surfaces())
     if (s->active())
-      for (const Contact& c : s->contacts()) f += c.force;
+      for (const Contact& c : s->contacts(state)) f += c.force;
   return f;
 }
 

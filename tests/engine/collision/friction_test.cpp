@@ -141,6 +141,7 @@ RunResult simulate(double mu, double dx, double moveEnd, double duration) {
   const std::string xml = sceneXml(mu, keyTimes(moveEnd, duration), movements(dx, moveEnd, duration));
   auto scene = buildScene(io::parseSceneText(xml, "friction.xml"));
   Simulation sim(*scene);
+  const State& state = sim.state();
   RigidObject* tool = scene->all<RigidObject>().at(0);
   CollisionPipeline* pipe = sim.pipeline();
   EXPECT_NE(pipe, nullptr);
@@ -154,16 +155,16 @@ RunResult simulate(double mu, double dx, double moveEnd, double duration) {
     if (bad) break;
     StepStats s;
     s.t = sim.time();
-    s.F = tool->force;
-    s.penetration = pipe->lastPenetration();
-    s.iterations = sim.constraintSolver()->lastIterations();
-    for (const Contact& c : surface->contacts()) {
+    s.F = tool->live(state).force;
+    s.penetration = pipe->lastPenetration(state);
+    s.iterations = sim.constraintSolver()->lastIterations(state);
+    for (const Contact& c : surface->contacts(state)) {
       if (!c.active) continue;
       const double fn = -c.n.dot(c.force);  // c.force is on the tissue; n points to the sphere
       const Vector3d ft = c.force + fn * c.n;
       // The tissue point's motion over the step relative to the sphere's, in the tangent plane
       // (the slip the solver's tangential rows see; the sphere only translates here).
-      Vector3d slip = c.point(block.x) - c.p0 - kDt * tool->v;
+      Vector3d slip = c.point(block.x(state)) - c.p0 - kDt * tool->live(state).v;
       slip -= slip.dot(c.n) * c.n;
       const double r = ft.norm() / fn;
       s.fn += fn;

@@ -233,7 +233,7 @@ std::vector<Level> indent(const Hertz& hz, bool constraint, const std::vector<do
   x << "  </Node>\n</Node>\n";
 
   SceneRun run = buildRun(x.str(), dir / (constraint ? "hertz_constraint.xml" : "hertz_penalty.xml"));
-  const RigidObject& tool = *run.scene->all<RigidObject>().at(0);
+  const RigidObject::Live& tool = run.scene->all<RigidObject>().at(0)->live(run.sim->state());
   std::vector<Level> out;
   for (size_t k = 0; k < levels.size(); ++k) {
     auto bad = run.sim->step();
@@ -246,8 +246,8 @@ std::vector<Level> indent(const Hertz& hz, bool constraint, const std::vector<do
     l.F = tool.force.z();     // the tissue pushes the sphere up: +z on the instrument
     l.Fh = hz.force(l.d);
     l.contacts = tool.contacts;
-    l.penetration = run.sim->pipeline()->lastPenetration();
-    if (run.sim->constraintSolver()) l.iterations = run.sim->constraintSolver()->lastIterations();
+    l.penetration = run.sim->pipeline()->lastPenetration(run.sim->state());
+    if (run.sim->constraintSolver()) l.iterations = run.sim->constraintSolver()->lastIterations(run.sim->state());
     out.push_back(l);
   }
   return out;

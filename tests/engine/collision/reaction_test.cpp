@@ -105,6 +105,8 @@ TEST(ContactReaction, InstrumentWrenchIsMinusTissueContactForces) {
     SceneRun run = buildRun(sceneXml(s), "reaction.xml");
     RigidObject& tool = *run.scene->all<RigidObject>().at(0);
     const CollisionPipeline& pipe = *run.sim->pipeline();
+    const State& state = run.sim->state();
+    const RigidObject::Live& live = tool.live(state);
     int withContact = 0;
     double maxForce = 0, maxTorque = 0;
     for (int k = 0; k < 100; ++k) {
@@ -115,25 +117,25 @@ TEST(ContactReaction, InstrumentWrenchIsMinusTissueContactForces) {
       int n = 0;
       for (const SurfaceCollisionModel* surf : pipe.surfaces()) {
         if (!surf->active()) continue;
-        for (const Contact& c : surf->contacts()) {
+        for (const Contact& c : surf->contacts(state)) {
           double w = 0;
           for (int i = 0; i < c.count; ++i) w += c.w[i];
           ASSERT_NEAR(w, 1.0, 1e-12) << "barycentric weights of a contact";
           ASSERT_NEAR(c.n.norm(), 1.0, 1e-12);
           sum += c.force;
           const Vector3d onTool = -c.force;
-          const Vector3d at = c.sphere->centre() - c.sphere->radius() * c.n;  // contact point on the sphere
-          torque += (at - c.sphere->centre()).cross(onTool);
+          const Vector3d at = c.sphere->centre(state) - c.sphere->radius() * c.n;  // contact point on the sphere
+          torque += (at - c.sphere->centre(state)).cross(onTool);
           scale += c.force.norm();
           n += c.force.squaredNorm() > 0;
         }
       }
-      ASSERT_EQ(tool.contacts, n) << "step " << k + 1;
-      EXPECT_LE((tool.force + sum).norm(), 1e-12 * scale + 1e-300) << "step " << k + 1;
-      EXPECT_LE((tool.torque - torque).norm(), 1e-12 * radius * scale + 1e-300) << "step " << k + 1;
+      ASSERT_EQ(live.contacts, n) << "step " << k + 1;
+      EXPECT_LE((live.force + sum).norm(), 1e-12 * scale + 1e-300) << "step " << k + 1;
+      EXPECT_LE((live.torque - torque).norm(), 1e-12 * radius * scale + 1e-300) << "step " << k + 1;
       if (n > 0) ++withContact;
-      maxForce = std::max(maxForce, tool.force.norm());
-      maxTorque = std::max(maxTorque, tool.torque.norm());
+      maxForce = std::max(maxForce, live.force.norm());
+      maxTorque = std::max(maxTorque, live.torque.norm());
     }
     std::printf("  %-28s %d steps with contact, max |F| %.4g uN, max |torque| %.4g uN mm, %.2fs\n", label(s).c_str(), withContact,
                 maxForce, maxTorque, secondsSince(t0));
@@ -172,6 +174,7 @@ TEST(ContactReaction, StaticContactForcesBalanceFixedNodeReactions) {
     const CollisionPipeline& pipe = *run.sim->pipeline();
     MechanicalObject& mo = *run.scene->all<MechanicalObject>().at(0);
     TetrahedronFEMForceField& fem = *run.scene->all<TetrahedronFEMForceField>().at(0);
+    State& state = run.sim->state();
     std::vector<char> fixed(mo.size(), 0);
     for (int i = 0; i < mo.size(); ++i) fixed[i] = mo.x0(2, i) < 0.1;
     double worst = 0, maxTangential = 0;
@@ -179,10 +182,10 @@ TEST(ContactReaction, StaticContactForcesBalanceFixedNodeReactions) {
     for (int k = 0; k < 20; ++k) {
       auto bad = run.sim->step();
       ASSERT_FALSE(bad) << bad->str();
-      const Vector3d contact = contactForceOnTissue(pipe);
+      const Vector3d contact = contactForceOnTissue(pipe, state);
       if (contact.norm() == 0) continue;
       Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, mo.size());
-      fem.addForce(mo.x, Eigen::Matrix3Xd::Zero(3, mo.size()), f);
+      fem.addForce(state, mo.x(state), Eigen::Matrix3Xd::Zero(3, mo.size()), f);
       Vector3d reaction = Vector3d::Zero(), freeSum = Vector3d::Zero();
       for (int i = 0; i < mo.size(); ++i) (fixed[i] ? reaction : freeSum) -= f.col(i);
       const double rel = (reaction + contact).norm() / contact.norm();
@@ -192,7 +195,7 @@ TEST(ContactReaction, StaticContactForcesBalanceFixedNodeReactions) {
       // The elastic forces sum to zero over the body (rigid translations do not strain it).
       EXPECT_LE((reaction + freeSum).norm(), 1e-9 * contact.norm()) << "step " << k + 1;
       // The instrument feels the reaction of the supports through the tissue.
-      EXPECT_LE((tool.force - reaction).norm(), 1e-8 * contact.norm()) << "step " << k + 1;
+      EXPECT_LE((tool.live(state).force - reaction).norm(), 1e-8 * contact.norm()) << "step " << k + 1;
       maxTangential = std::max(maxTangential, std::hypot(contact.x(), contact.y()) / std::abs(contact.z()));
       if (k == 9 || k == 19)
         std::printf("  %-28s step %2d: contact on tissue (%.5g %.5g %.5g) uN, support reaction (%.5g %.5g %.5g) uN, |sum| / |F| %.1e\n",

@@ -129,13 +129,14 @@ void runPalpation(bool constraint) {
   const auto t0 = std::chrono::steady_clock::now();
   auto scene = buildScene(io::parseSceneText(sceneXml(constraint, csv), tmp / "palpation.xml"));
   Simulation sim(*scene);
+  const State& state = sim.state();
   CollisionPipeline* pipe = sim.pipeline();
   ASSERT_NE(pipe, nullptr);
   ASSERT_EQ(pipe->settings().contactDistance, kContactDistance);
   const double limit = 0.1 * pipe->settings().contactDistance;
   RigidObject* tool = scene->all<RigidObject>().at(0);
   SurfaceCollisionModel* surface = pipe->surfaces().at(0);
-  const Eigen::Matrix3Xd& x = surface->mstate().x;
+  const Eigen::Matrix3Xd& x = surface->mstate().x(state);
 
   const int steps = static_cast<int>(std::lround(pr.trajectory.end() / scene->dt()));
   double worstVertex = -1e300, worstVertexT = 0, worstSurface = -1e300, worstSurfaceT = 0, peakForce = 0;
@@ -145,9 +146,9 @@ void runPalpation(bool constraint) {
   for (int i = 0; i < steps; ++i) {
     auto bad = sim.step();
     ASSERT_FALSE(bad) << mode << ": " << bad->str();
-    const Vector3d c = tool->p;
-    if (pipe->lastPenetration() > worstVertex) {
-      worstVertex = pipe->lastPenetration();
+    const Vector3d c = tool->live(state).p;
+    if (pipe->lastPenetration(state) > worstVertex) {
+      worstVertex = pipe->lastPenetration(state);
       worstVertexT = sim.time();
       worstVertexAt = c;
     }
@@ -160,8 +161,8 @@ void runPalpation(bool constraint) {
       worstSurfaceT = sim.time();
       worstSurfaceAt = c;
     }
-    peakForce = std::max(peakForce, tool->force.norm());
-    const bool touching = tool->contacts > 0;
+    peakForce = std::max(peakForce, tool->live(state).force.norm());
+    const bool touching = tool->live(state).contacts > 0;
     contactSteps += touching;
     episodes += touching && !inContact;
     inContact = touching;
@@ -174,13 +175,13 @@ void runPalpation(bool constraint) {
               worstSurface, worstSurfaceT, nearestFace(worstSurfaceAt).c_str(), limit, peakForce, contactSteps, episodes,
               seconds);
 
-  EXPECT_NEAR(pipe->maxPenetration(), worstVertex, 1e-12);
-  EXPECT_LE(pipe->maxPenetration(), limit) << mode << ": a surface vertex went into the sphere (t = " << worstVertexT << ")";
+  EXPECT_NEAR(pipe->maxPenetration(state), worstVertex, 1e-12);
+  EXPECT_LE(pipe->maxPenetration(state), limit) << mode << ": a surface vertex went into the sphere (t = " << worstVertexT << ")";
   EXPECT_LE(worstSurface, limit) << mode << ": the sphere went into the surface (t = " << worstSurfaceT << ")";
   // Not vacuous: every poke pressed the tissue, and the instrument followed the trajectory.
   EXPECT_GE(episodes, pr.pokes);
   EXPECT_GT(peakForce, 0);
-  EXPECT_LT((tool->p - pr.trajectory.p.back()).norm(), 1e-9);
+  EXPECT_LT((tool->live(state).p - pr.trajectory.p.back()).norm(), 1e-9);
 }
 
 TEST(Tunnelling, PalpationConstraintContact) { runPalpation(true); }

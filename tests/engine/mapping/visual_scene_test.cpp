@@ -180,11 +180,12 @@ TEST(VisualScene, BarycentricSurfaceFollowsTheBodyAndIsWrittenAsVtpSeries) {
   ASSERT_EQ(skin.size(), sheet.vertices);
   // The body sagged; a surface vertex placed on a grid node moves with that node (its
   // coordinates are 1 there and 0 elsewhere, up to round-off of 1e-16 relative).
-  EXPECT_GT((dofs.x - dofs.x0).colwise().norm().maxCoeff(), 1e-3);
+  const State& state = run.sim->state();
+  EXPECT_GT((dofs.x(state) - dofs.x0).colwise().norm().maxCoeff(), 1e-3);
   for (int j = 0; j < 5; j += 2)
     for (int i = 0; i < 7; i += 2) {
       const int node = i / 2 + 4 * (j / 2 + 3 * 2);
-      EXPECT_LT((skin.x.col(Sheet::index(i, j)) - dofs.x.col(node)).norm(), 1e-12) << i << " " << j;
+      EXPECT_LT((skin.x(state).col(Sheet::index(i, j)) - dofs.x(state).col(node)).norm(), 1e-12) << i << " " << j;
     }
 
   // Frames at steps 0, 2, 4, 6 and their index.
@@ -223,11 +224,11 @@ TEST(VisualScene, BarycentricSurfaceFollowsTheBodyAndIsWrittenAsVtpSeries) {
   const auto ds = values<double>(disp);
   ASSERT_EQ(xs.size(), 3u * sheet.vertices);
   ASSERT_EQ(ds.size(), 3u * sheet.vertices);
-  const Eigen::Matrix3Xd d = skin.x - skin.x0;
+  const Eigen::Matrix3Xd d = skin.x(state) - skin.x0;
   for (int i = 0; i < skin.size(); ++i)
     for (int k = 0; k < 3; ++k) {
       // Float64 in the file: bit-exact.
-      EXPECT_EQ(xs[3 * i + k], skin.x(k, i));
+      EXPECT_EQ(xs[3 * i + k], skin.x(state)(k, i));
       EXPECT_EQ(ds[3 * i + k], d(k, i));
     }
   const auto conn = values<int64_t>(arrayNamed(piece.child("Polys"), "connectivity"));
@@ -258,8 +259,9 @@ TEST(VisualScene, BoundaryOfTheTetrahedraWithIdentityMapping) {
   // 3 x 2 x 2 cells: 32 boundary squares, two triangles each.
   EXPECT_EQ(surf.triangles.cols(), 64);
   ASSERT_EQ(surf.size(), 36);
-  EXPECT_EQ(surf.x, dofs.x);
-  EXPECT_GT((surf.x - surf.x0).norm(), 1e-3);
+  const State& state = run.sim->state();
+  EXPECT_EQ(surf.x(state), dofs.x(state));
+  EXPECT_GT((surf.x(state) - surf.x0).norm(), 1e-3);
   EXPECT_TRUE(fs::exists(dir / "out/surf_000000.vtp"));
   EXPECT_TRUE(fs::exists(dir / "out/surf_000003.vtp"));
   pugi::xml_document pvd;
@@ -334,7 +336,7 @@ TEST(VisualScene, SurfaceFromALoader) {
   const auto& skin = named<VisualModel>(run.scene->root(), "skin");
   EXPECT_EQ(skin.size(), 8);
   EXPECT_EQ(skin.triangles.cols(), 2);
-  EXPECT_EQ(skin.x, named<MechanicalObject>(run.scene->root(), "dofs").x);
+  EXPECT_EQ(skin.x(run.sim->state()), named<MechanicalObject>(run.scene->root(), "dofs").x(run.sim->state()));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -69,7 +69,7 @@ Outcome simulate(const TempDir& dir, const std::string& sceneText, int steps) {
     if (failure) break;
   }
   const MechanicalObject& m = *s->all<MechanicalObject>().at(0);
-  return {m.x, m.x0};
+  return {m.x(sim.state()), m.x0};
 }
 
 class MeshedBoxSags : public testing::TestWithParam<std::string> {};

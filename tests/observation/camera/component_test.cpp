@@ -113,7 +113,7 @@ TEST(DepthCameraComponent, FramesShowTheCurrentPositions) {
   SceneRun run(sceneText(kCamera + " rate=\"25\""));
   run.sim->begin();  // frame 0: the block at rest
   MechanicalObject* block = run.scene->all<MechanicalObject>().front();
-  block->x.row(2).array() += 5;  // lift it by 5 mm
+  block->x(run.sim->state()).row(2).array() += 5;  // lift it by 5 mm
   for (int i = 0; i < 4; ++i) ASSERT_FALSE(run.sim->step());  // frame 1 at 0.04 s
   run.sim->end();
   const auto frames = run.frames();

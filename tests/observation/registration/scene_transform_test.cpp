@@ -74,7 +74,7 @@ TEST(SceneTransform, RegisteredTrajectoryTouchesTheSceneCorners) {
 
   auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
-  RigidObject& b = tool(*s);
+  const RigidObject::Live& b = tool(*s).live(sim.state());
   const Eigen::Quaterniond expectedQ = Eigen::Quaterniond(robotToScene.linear()) * toolQ;
   for (int k = 0; k < 4; ++k) {
     if (k > 0) {
@@ -102,7 +102,7 @@ TEST(SceneTransform, AppliedBeforeRotationAndTranslation) {
   write(dir / "scene.xml", scene(R"(transform="t.txt" rotation="90 0 0" translation="0 0 100")"));
   auto s = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   viscera::Simulation sim(*s);
-  RigidObject& b = tool(*s);
+  const RigidObject::Live& b = tool(*s).live(sim.state());
   // By hand for (1, 2, 3): file -> (-2 + 10, 1, 3) = (8, 1, 3); about x -> (8, -3, 1); + t -> (8, -3, 101).
   EXPECT_LT((b.p - Eigen::Vector3d(8, -3, 101)).norm(), 1e-12);
   ASSERT_FALSE(sim.step().has_value());
