@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <sstream>
 #include <string>
 
 #include "builtin/Builtins.h"
@@ -54,13 +55,20 @@ void dropContact(ElementDesc& el) {
 }
 
 // The phantom without its instrument, loaded as before the instrument existed: a 0.5 N press on a
-// patch of the top face, CG from zero each step (25 iterations).
+// patch in the middle of the top face (z up), CG from zero each step (25 iterations).
 void pressPhantom(SceneDesc& d) {
   ElementDesc* phantom = &d.element("phantom");
+  std::istringstream lo(d.get("phantom/grid.min")->value), hi(d.get("phantom/grid.max")->value);
+  double x0, y0, z0, x1, y1, z1;
+  lo >> x0 >> y0 >> z0;
+  hi >> x1 >> y1 >> z1;
+  std::ostringstream patch;
+  patch << x0 + 0.35 * (x1 - x0) << " " << y0 + 0.2 * (y1 - y0) << " " << z1 - 0.5 << " " << x0 + 0.65 * (x1 - x0)
+        << " " << y0 + 0.7 * (y1 - y0) << " " << z1 + 0.5;
   ElementDesc box, press;
   box.tag = "BoxROI";
   box.set("name", "press");
-  box.set("box", "24 8 39 45 28 40");
+  box.set("box", patch.str());
   press.tag = "ConstantForceField";
   press.set("indices", "@press.indices");
   press.set("totalForce", "0 0 -0.5 N");

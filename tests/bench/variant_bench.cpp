@@ -1,7 +1,8 @@
 // Scene variants as a batch study makes them: building and initialising a variant of the coarse
 // phantom from an in-memory description, with its input files and symbolic factorisations cached
-// (as every variant after the first finds them) and cold (both caches cleared each time); and the throughput of variant runs on one
-// and on two threads (each run one worker: the batch parallelism is across runs).
+// (as every variant after the first finds them) and cold (both caches cleared each time); the
+// throughput of variant runs on one and on two threads (each run one worker: the batch parallelism
+// is across runs), and of simulations of one built model.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -71,8 +72,33 @@ void BM_CoarseVariantRuns(benchmark::State& state) {
   state.SetItemsProcessed(variants);
 }
 
+// Simulations of one built model (no variant, no build per run): `threads` of them step 300
+// times at once, each with its own state; items/s is runs per second.
+void BM_CoarseModelRuns(benchmark::State& state) {
+  const int threads = static_cast<int>(state.range(0));
+  auto scene = buildScene(coarsePhantom());
+  { Simulation first(*scene); }  // initialise the model once
+  auto one = [&] {
+    Simulation sim(*scene);
+    RunOptions o;
+    o.steps = 300;
+    o.threads = 1;
+    o.recordWrench = false;
+    run(sim, o);
+  };
+  long runs = 0;
+  for (auto _ : state) {
+    std::vector<std::thread> pool;
+    for (int t = 0; t < threads; ++t) pool.emplace_back(one);
+    for (auto& t : pool) t.join();
+    runs += threads;
+  }
+  state.SetItemsProcessed(runs);
+}
+
 }  // namespace
 
+BENCHMARK(BM_CoarseModelRuns)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 BENCHMARK(BM_CoarseVariantBuild_Cached)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_CoarseVariantBuild_Cold)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(1.0);
 BENCHMARK(BM_CoarseVariantRuns)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
