@@ -70,17 +70,6 @@ void collectDrivers(ElementDesc& el, std::vector<ElementDesc*>& out) {
 }
 
 // Exporters and cameras write files; a candidate only scores.
-void dropOutputs(ElementDesc& el) {
-  auto& c = el.children;
-  c.erase(std::remove_if(c.begin(), c.end(),
-                         [](const ElementDesc& e) {
-                           const ComponentSpec* s = builtinRegistry().find(e.tag);
-                           return s && (s->category == "output" || s->category == "sensor");
-                         }),
-          c.end());
-  for (auto& ch : c) dropOutputs(ch);
-}
-
 double mean(const std::vector<double>& v) {
   if (v.empty()) return ReplayScore::nan;
   double s = 0;
@@ -424,17 +413,27 @@ PreparedDataset prepareDataset(const std::string& folder, const ScoreOptions& op
   return p;
 }
 
-SceneDesc replayDescription(SceneDesc scene, const Dataset& data) {
+void removeOutputs(ElementDesc& el, bool sensors) {
+  auto& c = el.children;
+  c.erase(std::remove_if(c.begin(), c.end(),
+                         [sensors](const ElementDesc& e) {
+                           const ComponentSpec* s = builtinRegistry().find(e.tag);
+                           return s && (s->category == "output" || (sensors && s->category == "sensor"));
+                         }),
+          c.end());
+  for (auto& ch : c) removeOutputs(ch, sensors);
+}
+
+SceneDesc withTrajectory(SceneDesc scene, const std::string& trajectory, double offset, const std::string& why) {
   std::vector<ElementDesc*> drivers;
   collectDrivers(scene.root, drivers);
   if (drivers.empty())
-    throw Error(SourceLoc{scene.file}, std::string("the scene has no ") + kDriverTag + " to replay " + data.trajectoryPath +
-                                           " (the instrument must follow the dataset's trajectory)");
+    throw Error(SourceLoc{scene.file}, std::string("the scene has no ") + kDriverTag + " to follow " + trajectory + " (" + why + ")");
   if (drivers.size() > 1) {
     std::string where;
     for (const ElementDesc* d : drivers) where += (where.empty() ? "" : ", ") + d->loc.str();
     throw Error(SourceLoc{scene.file}, std::string("the scene has ") + std::to_string(drivers.size()) + " " + kDriverTag +
-                                           "s (" + where + "); a dataset has one instrument trajectory");
+                                           "s (" + where + "); " + why + ", so it needs one");
   }
   ElementDesc& d = *drivers.front();
   auto& a = d.attrs;
@@ -443,12 +442,17 @@ SceneDesc replayDescription(SceneDesc scene, const Dataset& data) {
                            return x.name == "transform" || x.name == "rotation" || x.name == "translation";
                          }),
           a.end());
-  d.set("filename", fs::absolute(data.trajectoryPath).string(), SourceLoc{data.trajectoryPath});
-  char offset[40];
-  std::snprintf(offset, sizeof offset, "%.17g", clockOffset(scene, data));
-  d.set("timeOffset", offset, SourceLoc{data.trajectoryPath});
-  dropOutputs(scene.root);
+  d.set("filename", fs::absolute(trajectory).string(), SourceLoc{trajectory});
+  char text[40];
+  std::snprintf(text, sizeof text, "%.17g", offset);
+  d.set("timeOffset", text, SourceLoc{trajectory});
+  removeOutputs(scene.root, true);
   return scene;
+}
+
+SceneDesc replayDescription(SceneDesc scene, const Dataset& data) {
+  const double offset = clockOffset(scene, data);
+  return withTrajectory(std::move(scene), data.trajectoryPath, offset, "the instrument must follow the dataset's trajectory");
 }
 
 ReplayScore replay(const SceneDesc& desc, const PreparedDataset& data, const ReplayOptions& options) {

@@ -50,6 +50,13 @@ PreparedDataset prepareDataset(const std::string& folder, const ScoreOptions& op
 // (1.7e9 s) replays from the start (the driver's timeOffset is set to the difference). Error when
 // the scene has no TrajectoryDriver or several.
 SceneDesc replayDescription(SceneDesc scene, const Dataset& data);
+// Removes a description's outputs: exporters and, with `sensors`, cameras.
+void removeOutputs(ElementDesc& root, bool sensors);
+// `scene` with its one TrajectoryDriver following the trajectory file `trajectory`, in the scene's
+// frame (the driver's transform, rotation and translation removed), at trajectory time = scene
+// time + `offset`, and its outputs (exporters, cameras) removed. Error when the scene has no
+// TrajectoryDriver or several; `why` says what the trajectory is for.
+SceneDesc withTrajectory(SceneDesc scene, const std::string& trajectory, double offset, const std::string& why);
 
 // The mean signed residual (along the outward normal, + outside the tissue) of the cloud points
 // whose closest surface point lies on the tissue's top (+z facing), on an x-y grid: where on the

@@ -33,6 +33,7 @@
 #include "io/scene/Transform.h"
 #include "motion/Trajectory.h"
 #include "study/Dataset.h"
+#include "study/Replay.h"
 
 namespace viscera {
 namespace {
@@ -55,18 +56,6 @@ class PoseRecorder : public RunObserver {
   }
   const RigidObject& body_;
 };
-
-// Exporters write files of their own; a dataset holds the camera's frames only.
-void dropOutputs(ElementDesc& el) {
-  auto& c = el.children;
-  c.erase(std::remove_if(c.begin(), c.end(),
-                         [](const ElementDesc& e) {
-                           const ComponentSpec* s = builtinRegistry().find(e.tag);
-                           return s && s->category == "output";
-                         }),
-          c.end());
-  for (auto& ch : c) dropOutputs(ch);
-}
 
 double quantity(const std::string& text, const Dimension& dim, const UnitSystem& units, const std::string& option) {
   try {
@@ -115,7 +104,7 @@ int makeDataset(const DatasetMakeOptions& o) {
 
   SceneDesc desc = io::readScene(o.scene);
   for (const auto& a : o.sets) desc.applySetting(a);
-  dropOutputs(desc.root);
+  study::removeOutputs(desc.root, false);  // exporters write files of their own; the camera stays
   o.camera.apply(desc, {{"rate", "10"}, {"tissueOnly", "true"}, {"filename", "camera"}});
   if (hasDepthCamera(desc.root) && desc.root.children.back().tag != "DepthCamera") {
     // The scene's own camera: its frames go to the dataset's camera folder.

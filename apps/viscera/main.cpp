@@ -25,6 +25,7 @@
 #include "apps/viscera/DistanceCommand.h"
 #include "apps/viscera/EspmCommand.h"
 #include "apps/viscera/KinematicsCommand.h"
+#include "apps/viscera/LearnCommand.h"
 #include "apps/viscera/MeshCommand.h"
 #include "apps/viscera/RegisterCommand.h"
 #include "apps/viscera/SearchCommand.h"
@@ -266,6 +267,7 @@ int main(int argc, char** argv) {
   addSearchCommand(app, action);
   addAuditCommand(app, action);
   addSofaSuiteCommand(app, action);
+  addLearnCommand(app, action);
 
   try {
     app.parse(argc, argv);

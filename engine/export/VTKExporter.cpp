@@ -24,6 +24,7 @@ class VTKExporter : public Component, public Observer {
     // Compressed frames also store connectivity and offsets as Int32; uncompressed ones keep the
     // plain Int64 layout.
     options_.compress = options_.int32Indices = attrs_.boolean("compress");
+    options_.float32 = attrs_.str("precision") == "float32";
     // Placed beside a visual model in a node without a MechanicalObject (SOFA's visual child
     // node), the exporter writes that surface, unless `mstate` names a MechanicalObject to write.
     if (!attrs_.isSet("mstate") && !node().find<MechanicalObject>()) visual_ = node().find<VisualModel>();
@@ -168,6 +169,9 @@ void registerVTKExporter(Registry& r) {
   s.add(AttrSpec::boolean("compress").def("true").help(
       "zlib-compress the arrays (vtkZLibDataCompressor, read by ParaView and VTK) with Int32 connectivity; "
       "false: plain base64 binary with Int64 connectivity"));
+  s.add(AttrSpec::choice("precision", {"float32", "float64"}).def("float32").help(
+      "how points and fields are stored: float32 (7 significant digits, half the size, as ParaView and SOFA write "
+      "them) or float64 (every bit of the simulation's doubles)"));
   s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always VTK XML (.vtu, .vtp for a visual surface)"));
   s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
   s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));

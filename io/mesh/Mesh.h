@@ -41,7 +41,7 @@ struct DataArray {
 };
 
 // How writeVtu encodes its arrays. The defaults give plain base64 "binary" arrays with Int64
-// connectivity and offsets; points and data are always Float64, so values read back bit-exact.
+// connectivity and offsets, and points and data as Float64, so values read back bit-exact.
 struct VtuWriteOptions {
   // zlib-compressed arrays (compressor="vtkZLibDataCompressor", VTK's block layout), which
   // VTK/ParaView and readVtu read. About 2.5x smaller for FEM frames (Float64 fields compress
@@ -51,6 +51,9 @@ struct VtuWriteOptions {
   int compressionBlockSize = 32768;  // uncompressed bytes per zlib block (VTK's default), >= 1024
   // Connectivity and offsets as Int32 (instead of Int64) when every value fits.
   bool int32Indices = false;
+  // Points and data as Float32 (7 significant digits, as ParaView and SOFA write them): half the
+  // bytes of Float64.
+  bool float32 = false;
 };
 
 // Writes an unstructured grid of tetrahedra (and optionally no cells at all) as .vtu.

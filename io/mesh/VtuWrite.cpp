@@ -54,6 +54,11 @@ class Block {
     std::memcpy(&bits, &v, sizeof bits);
     putUnsigned(bits, 8);
   }
+  void putFloat32(float v) {
+    uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    putUnsigned(bits, 4);
+  }
   const std::string& bytes() const { return bytes_; }
 
  private:
@@ -138,14 +143,26 @@ void appendArray(std::string& out, Encoding& e, const char* type, const std::str
   out += "</DataArray>\n";
 }
 
+// `count` real values get(0 .. count-1) as Float64, or Float32 when the options ask for it.
+template <class Get>
+void appendReals(std::string& out, Encoding& e, const std::string& name, int components, size_t count, const Get& get) {
+  const bool single = e.options.float32;
+  Block block((single ? 4 : 8) * static_cast<uint64_t>(count));
+  for (size_t i = 0; i < count; ++i)
+    if (single) block.putFloat32(static_cast<float>(get(i)));
+    else block.putFloat64(get(i));
+  appendArray(out, e, single ? "Float32" : "Float64", name, components, block);
+}
+
+void appendPoints(std::string& out, Encoding& e, const Eigen::Matrix3Xd& points) {
+  appendReals(out, e, "Points", 3, static_cast<size_t>(points.size()), [&](size_t i) { return points.data()[i]; });
+}
+
 void appendData(std::string& out, Encoding& e, const char* section, const std::vector<DataArray>& arrays) {
   if (arrays.empty()) return;
   out += std::string("      <") + section + ">\n";
-  for (const DataArray& a : arrays) {
-    Block block(8 * a.values.size());
-    for (double v : a.values) block.putFloat64(v);
-    appendArray(out, e, "Float64", a.name, a.components, block);
-  }
+  for (const DataArray& a : arrays)
+    appendReals(out, e, a.name, a.components, a.values.size(), [&](size_t i) { return a.values[i]; });
   out += std::string("      </") + section + ">\n";
 }
 
@@ -196,10 +213,7 @@ void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
   appendData(out, e, "CellData", cellData);
 
   out += "      <Points>\n";
-  Block xyz(24 * static_cast<uint64_t>(numPoints));
-  for (Eigen::Index i = 0; i < numPoints; ++i)
-    for (int k = 0; k < 3; ++k) xyz.putFloat64(points(k, i));
-  appendArray(out, e, "Float64", "Points", 3, xyz);
+  appendPoints(out, e, points);
   out += "      </Points>\n      <Cells>\n";
   // Node indices are ints; the last offset, 4 x #cells, decides whether Int32 holds them all.
   const int indexBytes = options.int32Indices && 4 * static_cast<uint64_t>(numCells) <= INT32_MAX ? 4 : 8;
@@ -246,10 +260,7 @@ void writeVtp(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
          "\">\n";
   appendData(out, e, "PointData", pointData);
   out += "      <Points>\n";
-  Block xyz(24 * static_cast<uint64_t>(numPoints));
-  for (Eigen::Index i = 0; i < numPoints; ++i)
-    for (int k = 0; k < 3; ++k) xyz.putFloat64(points(k, i));
-  appendArray(out, e, "Float64", "Points", 3, xyz);
+  appendPoints(out, e, points);
   out += "      </Points>\n";
   const bool small = options.int32Indices && 3 * static_cast<uint64_t>(std::max(numTris, numVerts)) <= INT32_MAX;
   const int indexBytes = small ? 4 : 8;

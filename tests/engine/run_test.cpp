@@ -224,7 +224,7 @@ TEST(Run, AModelWithOutputsServesOneSimulationAtATime) {
       EXPECT_NE(std::string(e.what()).find("already serves another simulation"), std::string::npos) << e.what();
     }
   }
-  EXPECT_NO_THROW(Simulation(*exporting));  // the first one has ended
+  EXPECT_NO_THROW({ Simulation again(*exporting); });  // the first one has ended
 }
 
 }  // namespace

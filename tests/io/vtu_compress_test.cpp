@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -521,8 +522,9 @@ TEST(VtuCompress, ExporterCompressesByDefault) {
         <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="large"/>
         <BoxROI name="clamp" box="-1 -1 -1 2 2 0.1"/>
         <FixedConstraint indices="@clamp.indices"/>
-        <VTKExporter filename="packed"/>
-        <VTKExporter filename="plain" compress="false"/>
+        <VTKExporter filename="packed" precision="float64"/>
+        <VTKExporter filename="plain" compress="false" precision="float64"/>
+        <VTKExporter filename="single"/>
     </Node>
 </Node>
 )");
@@ -546,6 +548,24 @@ TEST(VtuCompress, ExporterCompressesByDefault) {
   const VolumeMesh a = viscera::io::readVtu(dir / "out/packed_000003.vtu"), b = viscera::io::readVtu(dir / "out/plain_000003.vtu");
   expectBitExact(pointsAsVector(a.points), pointsAsVector(b.points), "points");
   EXPECT_TRUE(a.tets == b.tets);
+
+  // By default points and fields are Float32: each value is the double rounded to the nearest float.
+  const std::string single = slurp(dir.path() / "out" / "single_000003.vtu");
+  EXPECT_EQ(findArray(single, "Points").type, "Float32");
+  EXPECT_EQ(findArray(single, "displacement").type, "Float32");
+  EXPECT_EQ(findArray(single, "vonMises").type, "Float32");
+  const std::vector<unsigned char> raw = decodeCompressed(findArray(single, "displacement").text).raw;
+  ASSERT_EQ(raw.size(), 4u * displacement.size());
+  for (size_t i = 0; i < displacement.size(); ++i) {
+    float v;
+    std::memcpy(&v, raw.data() + 4 * i, 4);
+    ASSERT_EQ(v, static_cast<float>(displacement[i])) << "displacement value " << i;
+  }
+  const VolumeMesh c = viscera::io::readVtu(dir / "out/single_000003.vtu");
+  ASSERT_EQ(c.points.cols(), a.points.cols());
+  for (Eigen::Index i = 0; i < c.points.size(); ++i)
+    ASSERT_EQ(c.points.data()[i], static_cast<double>(static_cast<float>(a.points.data()[i]))) << "point coordinate " << i;
+  EXPECT_LT(fs::file_size(dir.path() / "out" / "single_000003.vtu"), fs::file_size(dir.path() / "out" / "packed_000003.vtu"));
 }
 
 // VTK's own reader, where the python3 VTK bindings are installed (Debian's python3-vtk9).
@@ -598,6 +618,26 @@ print(' '.join(str(o.GetCellType(i)) for i in range(o.GetNumberOfCells())))
   const std::vector<double> types = doubles();
   ASSERT_EQ(types.size(), 9216u);
   for (double t : types) ASSERT_EQ(t, 10);
+
+  // Float32 arrays read back as the doubles rounded to floats.
+  VtuWriteOptions single = compressed();
+  single.float32 = true;
+  const std::string path32 = dir / "gel32.vtu";
+  viscera::io::writeVtu(path32, f.points, f.tets, f.pointData, f.cellData, single);
+  const std::string command32 =
+      std::string(python) + " " + (dir / "check.py") + " " + path32 + " > " + (dir / "out.txt") + " 2> " + (dir / "err.txt");
+  ASSERT_EQ(std::system(command32.c_str()), 0) << slurp(dir.path() / "err.txt");
+  EXPECT_EQ(slurp(dir.path() / "err.txt"), "");
+  out = std::istringstream(slurp(dir.path() / "out.txt"));
+  std::getline(out, counts);
+  EXPECT_EQ(counts, "2025 9216");
+  auto rounded = [](std::vector<double> v) {
+    for (double& x : v) x = static_cast<float>(x);
+    return v;
+  };
+  expectBitExact(doubles(), rounded(pointsAsVector(f.points)), "Float32 points");
+  expectBitExact(doubles(), rounded(f.pointData[0].values), "Float32 displacement");
+  expectBitExact(doubles(), rounded(f.cellData[0].values), "Float32 vonMises");
 }
 
 }  // namespace

@@ -166,7 +166,7 @@ TEST(VisualScene, BarycentricSurfaceFollowsTheBodyAndIsWrittenAsVtpSeries) {
   const std::string text = sceneWith(R"(      <OglModel name="skin" color="0.8 0.5 0.5" position=")" + sheet.position + R"(" triangles=")" +
                                      sheet.triangles + R"("/>
       <BarycentricMapping input="@.." output="@skin"/>
-      <VTKExporter filename="skin" exportEveryNumberOfSteps="2" compress="false"/>)");
+      <VTKExporter filename="skin" exportEveryNumberOfSteps="2" compress="false" precision="float64"/>)");
   SceneRun run(dir, text);
   ASSERT_EQ(run.error, "");
   // The 15 vertices of the odd columns lie 0.04 above the top face.
