@@ -49,7 +49,7 @@ struct SceneParts {
 
 SceneParts inspect(Scene& scene, const std::string& file) {
   SceneParts p;
-  { Simulation sim(scene); }  // initialises the model
+  scene.init();
   const auto bodies = obs::tissueSurfaces(scene);
   if (bodies.size() != 1)
     throw Error(SourceLoc{file}, "rollouts record one deformable body with tetrahedra; the scene has " +
