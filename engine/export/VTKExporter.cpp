@@ -3,8 +3,10 @@
 // with a visual model (OglModel/VisualModel), that surface as a .vtp series with displacement.
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <sstream>
 
+#include "core/Background.h"
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/fem/TetrahedronFEMForceField.h"
@@ -63,6 +65,12 @@ class VTKExporter : public Component, public Observer {
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
+    // Every frame of a volume has the same tetrahedra: encoded and compressed once.
+    if (!visual_) {
+      cells_ = io::encodeVtuCells(tetrahedra(), options_);
+      options_.encodedCells = &cells_;
+    }
+    queue_ = std::make_unique<BackgroundQueue>();
     if (attrs_.boolean("exportAtBegin")) write(t, 0, current(s));
     else keep(s, 0);
   }
@@ -75,7 +83,8 @@ class VTKExporter : public Component, public Observer {
     if (lastStep_ != step && kept_.step == step) write(t, step, kept_);
   }
   void end(const State& s, double t, int step) override {
-    if (attrs_.boolean("exportAtEnd") && (written_.empty() || lastStep_ != step)) write(t, step, current(s));
+    if (attrs_.boolean("exportAtEnd") && lastStep_ != step) write(t, step, current(s));
+    if (queue_) queue_->flush();  // every frame on disk, or the first write error
   }
 
  private:
@@ -100,14 +109,19 @@ class VTKExporter : public Component, public Observer {
     kept_.step = step;
   }
 
-  void write(double t, int step, const Frame& fr) {
+  // Frames are encoded, compressed and written beside the run, in order (a run's step goes on
+  // meanwhile); a write error comes back at the next frame or at the end.
+  void write(double t, int step, Frame fr) {
+    lastStep_ = step;
+    queue_->submit([this, t, step, fr = std::move(fr)] { writeNow(t, step, fr); });
+  }
+  void writeNow(double t, int step, const Frame& fr) {
     char num[32];
     std::snprintf(num, sizeof num, visual_ ? "_%06d.vtp" : "_%06d.vtu", step);
     const std::string file = base_ + num;
     if (visual_) writeSurface(file, fr);
     else writeVolume(file, fr);
     written_.push_back({t, std::filesystem::path(file).filename().string()});
-    lastStep_ = step;
     // The index is rewritten each time so that an interrupted run still opens in ParaView.
     io::writePvd(base_ + ".pvd", written_);
   }
@@ -134,20 +148,26 @@ class VTKExporter : public Component, public Observer {
       Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - s.x0) : f == "velocity" ? fr.v : fr.f;
       pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
     }
-    static const TetList none;
-    io::writeVtu(file, fr.x, fem_ ? fem_->tetrahedra() : none, pd, cd, options_);
+    io::writeVtu(file, fr.x, tetrahedra(), pd, cd, options_);
   }
 
   MechanicalObject* state_ = nullptr;
   TetrahedronFEMForceField* fem_ = nullptr;
   VisualModel* visual_ = nullptr;  // set when writing a visual surface instead of the state
   int every_ = 1;
+  const TetList& tetrahedra() const {
+    static const TetList none;
+    return fem_ ? fem_->tetrahedra() : none;
+  }
+
   io::VtuWriteOptions options_;
-  int lastStep_ = -1;
+  std::string cells_;  // the encoded <Cells> of every volume frame
+  int lastStep_ = -1;  // the last step handed to the writer
   std::vector<std::string> fields_;
   std::string base_;
-  std::vector<std::pair<double, std::string>> written_;
+  std::vector<std::pair<double, std::string>> written_;  // by the writer
   Frame kept_;
+  std::unique_ptr<BackgroundQueue> queue_;  // last: finishes its frames before the rest goes
 };
 
 }  // namespace

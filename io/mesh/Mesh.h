@@ -54,7 +54,14 @@ struct VtuWriteOptions {
   // Points and data as Float32 (7 significant digits, as ParaView and SOFA write them): half the
   // bytes of Float64.
   bool float32 = false;
+  // The <Cells> section made by encodeVtuCells for the same tetrahedra and options: a series whose
+  // frames share their cells encodes (and compresses) them once. Null: encoded per file.
+  const std::string* encodedCells = nullptr;
 };
+
+// The <Cells> section of a .vtu of `tets` (connectivity, offsets, types), encoded as `options`
+// say; give it to writeVtu as encodedCells.
+std::string encodeVtuCells(const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets, const VtuWriteOptions& options);
 
 // Writes an unstructured grid of tetrahedra (and optionally no cells at all) as .vtu.
 void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets,

@@ -179,7 +179,37 @@ void checkData(const std::string& path, const std::vector<DataArray>& arrays, Ei
   }
 }
 
+// The <Cells> section of tetrahedra: connectivity, offsets and types.
+void appendCells(std::string& out, Encoding& e, const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets) {
+  const Eigen::Index numCells = tets.cols();
+  out += "      <Cells>\n";
+  // Node indices are ints; the last offset, 4 x #cells, decides whether Int32 holds them all.
+  const int indexBytes = e.options.int32Indices && 4 * static_cast<uint64_t>(numCells) <= INT32_MAX ? 4 : 8;
+  const char* indexType = indexBytes == 4 ? "Int32" : "Int64";
+  Block connectivity(4 * indexBytes * static_cast<uint64_t>(numCells)), offsets(indexBytes * static_cast<uint64_t>(numCells)),
+      types(static_cast<uint64_t>(numCells));
+  for (Eigen::Index c = 0; c < numCells; ++c) {
+    for (int k = 0; k < 4; ++k) connectivity.putInt(tets(k, c), indexBytes);
+    offsets.putInt(4 * (c + 1), indexBytes);
+    types.putUnsigned(10, 1);  // VTK_TETRA
+  }
+  appendArray(out, e, indexType, "connectivity", 1, connectivity);
+  appendArray(out, e, indexType, "offsets", 1, offsets);
+  appendArray(out, e, "UInt8", "types", 1, types);
+  out += "      </Cells>\n";
+}
+
 }  // namespace
+
+std::string encodeVtuCells(const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets, const VtuWriteOptions& options) {
+  VtuWriteOptions once = options;
+  once.encodedCells = nullptr;
+  const std::string name = "the encoded cells";
+  Encoding e{name, once, {}};
+  std::string out;
+  appendCells(out, e, tets);
+  return out;
+}
 
 void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eigen::Matrix<int, 4, Eigen::Dynamic>& tets,
               const std::vector<DataArray>& pointData, const std::vector<DataArray>& cellData, const VtuWriteOptions& options) {
@@ -214,22 +244,10 @@ void writeVtu(const std::string& path, const Eigen::Matrix3Xd& points, const Eig
 
   out += "      <Points>\n";
   appendPoints(out, e, points);
-  out += "      </Points>\n      <Cells>\n";
-  // Node indices are ints; the last offset, 4 x #cells, decides whether Int32 holds them all.
-  const int indexBytes = options.int32Indices && 4 * static_cast<uint64_t>(numCells) <= INT32_MAX ? 4 : 8;
-  const char* indexType = indexBytes == 4 ? "Int32" : "Int64";
-  Block connectivity(4 * indexBytes * static_cast<uint64_t>(numCells)), offsets(indexBytes * static_cast<uint64_t>(numCells)),
-      types(static_cast<uint64_t>(numCells));
-  for (Eigen::Index c = 0; c < numCells; ++c) {
-    for (int k = 0; k < 4; ++k) connectivity.putInt(tets(k, c), indexBytes);
-    offsets.putInt(4 * (c + 1), indexBytes);
-    types.putUnsigned(10, 1);  // VTK_TETRA
-  }
-  appendArray(out, e, indexType, "connectivity", 1, connectivity);
-  appendArray(out, e, indexType, "offsets", 1, offsets);
-  appendArray(out, e, "UInt8", "types", 1, types);
+  out += "      </Points>\n";
+  if (options.encodedCells) out += *options.encodedCells;
+  else appendCells(out, e, tets);
   out +=
-      "      </Cells>\n"
       "    </Piece>\n"
       "  </UnstructuredGrid>\n"
       "</VTKFile>\n";
