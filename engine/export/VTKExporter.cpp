@@ -1,6 +1,7 @@
 // VTKExporter: writes the MechanicalObject of its node as a .vtu series with a .pvd index
 // (ParaView), with point fields displacement and velocity and the cell field vonMises; in a node
 // with a visual model (OglModel/VisualModel), that surface as a .vtp series with displacement.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -65,9 +66,17 @@ class VTKExporter : public Component, public Observer {
     std::error_code ec;
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
-    // Every frame of a volume has the same tetrahedra: encoded and compressed once.
-    if (!visual_) {
-      cells_ = io::encodeVtuCells(tetrahedra(), options_);
+    // What every frame shares, kept here: the writer thread reads nothing of other components
+    // (they may be gone when it finishes the frames of a run that failed). A volume's tetrahedra
+    // are encoded and compressed once.
+    if (visual_) {
+      rest_ = visual_->x0;
+      triangles_ = visual_->triangles;
+    } else {
+      rest_ = state_->x0;
+      static const TetList none;
+      tets_ = fem_ ? fem_->tetrahedra() : none;
+      cells_ = io::encodeVtuCells(tets_, options_);
       options_.encodedCells = &cells_;
     }
     queue_ = std::make_unique<BackgroundQueue>();
@@ -92,6 +101,7 @@ class VTKExporter : public Component, public Observer {
   struct Frame {
     int step = -1;
     Eigen::Matrix3Xd x, v, f;
+    Eigen::VectorXd vonMises;  // per element, when written
   };
   Frame current(const State& s) const {
     Frame fr;
@@ -113,6 +123,8 @@ class VTKExporter : public Component, public Observer {
   // meanwhile); a write error comes back at the next frame or at the end.
   void write(double t, int step, Frame fr) {
     lastStep_ = step;
+    // The stresses need the force field: computed here, on the run's thread.
+    if (!visual_ && std::find(fields_.begin(), fields_.end(), "vonMises") != fields_.end()) fr.vonMises = fem_->vonMises(fr.x);
     queue_->submit([this, t, step, fr = std::move(fr)] { writeNow(t, step, fr); });
   }
   void writeNow(double t, int step, const Frame& fr) {
@@ -127,41 +139,36 @@ class VTKExporter : public Component, public Observer {
   }
 
   void writeSurface(const std::string& file, const Frame& fr) {
-    const VisualModel& v = *visual_;
     std::vector<io::DataArray> pd;
     if (!fields_.empty()) {
-      const Eigen::Matrix3Xd d = fr.x - v.x0;
+      const Eigen::Matrix3Xd d = fr.x - rest_;
       pd.push_back({"displacement", 3, std::vector<double>(d.data(), d.data() + d.size())});
     }
-    io::writeVtp(file, fr.x, v.triangles, false, pd, options_);
+    io::writeVtp(file, fr.x, triangles_, false, pd, options_);
   }
 
   void writeVolume(const std::string& file, const Frame& fr) {
-    const MechanicalObject& s = *state_;
     std::vector<io::DataArray> pd, cd;
     for (const auto& f : fields_) {
       if (f == "vonMises") {
-        Eigen::VectorXd vm = fem_->vonMises(fr.x);
-        cd.push_back({"vonMises", 1, std::vector<double>(vm.data(), vm.data() + vm.size())});
+        cd.push_back({"vonMises", 1, std::vector<double>(fr.vonMises.data(), fr.vonMises.data() + fr.vonMises.size())});
         continue;
       }
-      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - s.x0) : f == "velocity" ? fr.v : fr.f;
+      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - rest_) : f == "velocity" ? fr.v : fr.f;
       pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
     }
-    io::writeVtu(file, fr.x, tetrahedra(), pd, cd, options_);
+    io::writeVtu(file, fr.x, tets_, pd, cd, options_);
   }
 
   MechanicalObject* state_ = nullptr;
   TetrahedronFEMForceField* fem_ = nullptr;
   VisualModel* visual_ = nullptr;  // set when writing a visual surface instead of the state
   int every_ = 1;
-  const TetList& tetrahedra() const {
-    static const TetList none;
-    return fem_ ? fem_->tetrahedra() : none;
-  }
-
   io::VtuWriteOptions options_;
-  std::string cells_;  // the encoded <Cells> of every volume frame
+  Eigen::Matrix3Xd rest_;  // the rest positions displacements are measured from
+  TetList tets_;           // a volume's tetrahedra
+  TriangleList triangles_; // a surface's triangles
+  std::string cells_;      // the encoded <Cells> of every volume frame
   int lastStep_ = -1;  // the last step handed to the writer
   std::vector<std::string> fields_;
   std::string base_;
