@@ -115,8 +115,9 @@ TEST(Rollout, FilesThatAreNotRolloutsAreErrorsNamingTheFile) {
       {"long.bin", roll + "x"},
       {"mesh_as_rollout.bin", mesh},
   };
-  for (const auto& [name, bytes] : bad) {
-    spit(dir / name, bytes);
+  for (const auto& entry : bad) {
+    const std::string& name = entry.first;  // (a structured binding cannot be captured in C++17)
+    spit(dir / name, entry.second);
     const std::string e = errorOf([&] { readRollout(dir / name); });
     EXPECT_NE(e.find(name), std::string::npos) << name << ": " << e;
   }
