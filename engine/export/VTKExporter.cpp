@@ -67,8 +67,8 @@ class VTKExporter : public Component, public Observer {
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) throw Error(loc(), "VTKExporter.filename: cannot create folder '" + dir.string() + "': " + ec.message());
     // What every frame shares, kept here: the writer thread reads nothing of other components
-    // (they may be gone when it finishes the frames of a run that failed). A volume's tetrahedra
-    // are encoded and compressed once.
+    // (they may be gone when it finishes the frames of a run that failed), the FEM's stresses
+    // included. A volume's tetrahedra are encoded and compressed once.
     if (visual_) {
       rest_ = visual_->x0;
       triangles_ = visual_->triangles;
@@ -76,6 +76,7 @@ class VTKExporter : public Component, public Observer {
       rest_ = state_->x0;
       static const TetList none;
       tets_ = fem_ ? fem_->tetrahedra() : none;
+      if (fem_) vonMises_ = fem_->vonMisesFunction();
       cells_ = io::encodeVtuCells(tets_, options_);
       options_.encodedCells = &cells_;
     }
@@ -101,7 +102,6 @@ class VTKExporter : public Component, public Observer {
   struct Frame {
     int step = -1;
     Eigen::Matrix3Xd x, v, f;
-    Eigen::VectorXd vonMises;  // per element, when written
   };
   Frame current(const State& s) const {
     Frame fr;
@@ -123,8 +123,6 @@ class VTKExporter : public Component, public Observer {
   // meanwhile); a write error comes back at the next frame or at the end.
   void write(double t, int step, Frame fr) {
     lastStep_ = step;
-    // The stresses need the force field: computed here, on the run's thread.
-    if (!visual_ && std::find(fields_.begin(), fields_.end(), "vonMises") != fields_.end()) fr.vonMises = fem_->vonMises(fr.x);
     queue_->submit([this, t, step, fr = std::move(fr)] { writeNow(t, step, fr); });
   }
   void writeNow(double t, int step, const Frame& fr) {
@@ -151,7 +149,8 @@ class VTKExporter : public Component, public Observer {
     std::vector<io::DataArray> pd, cd;
     for (const auto& f : fields_) {
       if (f == "vonMises") {
-        cd.push_back({"vonMises", 1, std::vector<double>(fr.vonMises.data(), fr.vonMises.data() + fr.vonMises.size())});
+        const Eigen::VectorXd vm = vonMises_(fr.x);
+        cd.push_back({"vonMises", 1, std::vector<double>(vm.data(), vm.data() + vm.size())});
         continue;
       }
       Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - rest_) : f == "velocity" ? fr.v : fr.f;
@@ -169,6 +168,7 @@ class VTKExporter : public Component, public Observer {
   TetList tets_;           // a volume's tetrahedra
   TriangleList triangles_; // a surface's triangles
   std::string cells_;      // the encoded <Cells> of every volume frame
+  std::function<Eigen::VectorXd(const Eigen::Matrix3Xd&)> vonMises_;  // stresses, from a copy of the FEM's rest data
   int lastStep_ = -1;  // the last step handed to the writer
   std::vector<std::string> fields_;
   std::string base_;

@@ -191,14 +191,26 @@ std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3
   return bad;
 }
 
-Eigen::VectorXd TetrahedronFEMForceField::vonMises(const Eigen::Matrix3Xd& x) const {
-  Eigen::VectorXd out(tets_.cols());
-  for (int e = 0; e < tets_.cols(); ++e) {
-    const Mat34 p = gather(x, e);
-    const Eigen::Matrix3d R = fem::frame(method_, p);
-    out[e] = fem::vonMises(fem::stress(rest_[e], fem::localPositions(method_, R, p) - rest_[e].X));
+namespace {
+
+Eigen::VectorXd vonMisesOf(fem::Method method, const TetList& tets, const std::vector<fem::ElementRest>& rest,
+                           const Eigen::Matrix3Xd& x) {
+  Eigen::VectorXd out(tets.cols());
+  for (int e = 0; e < tets.cols(); ++e) {
+    Mat34 p;
+    for (int k = 0; k < 4; ++k) p.col(k) = x.col(tets(k, e));
+    const Eigen::Matrix3d R = fem::frame(method, p);
+    out[e] = fem::vonMises(fem::stress(rest[e], fem::localPositions(method, R, p) - rest[e].X));
   }
   return out;
+}
+
+}  // namespace
+
+Eigen::VectorXd TetrahedronFEMForceField::vonMises(const Eigen::Matrix3Xd& x) const { return vonMisesOf(method_, tets_, rest_, x); }
+
+std::function<Eigen::VectorXd(const Eigen::Matrix3Xd&)> TetrahedronFEMForceField::vonMisesFunction() const {
+  return [method = method_, tets = tets_, rest = rest_](const Eigen::Matrix3Xd& x) { return vonMisesOf(method, tets, rest, x); };
 }
 
 void registerTetrahedronFEM(Registry& r) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <vector>
 
 #include "engine/Roles.h"
@@ -42,6 +43,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   const TetList& tetrahedra() const { return tets_; }
   // Von Mises stress per element at x.
   Eigen::VectorXd vonMises(const Eigen::Matrix3Xd& x) const;
+  // The same, as a function that keeps its own copy of what it needs (it outlives the model).
+  std::function<Eigen::VectorXd(const Eigen::Matrix3Xd&)> vonMisesFunction() const;
   // Uses the exact tangent (with the derivative of the rotation) instead of SOFA's R^T K0 R.
   bool exactTangent() const { return exact_; }
   void setExactTangent(bool on) override { exact_ = on; }
