@@ -73,6 +73,16 @@ class StateReader {
     v.resize(n);
     for (auto& e : v) get(e);
   }
+  // A vector that must keep the size `v` has in this model (one value per element, per spring):
+  // read into `v`, or a mismatch naming the count and `what` it counts.
+  template <class T, class A>
+  void getSameSize(std::vector<T, A>& v, const char* what) {
+    std::vector<T, A> in;
+    get(in);
+    if (in.size() != v.size())
+      mismatch(std::to_string(in.size()) + " " + what + " where this component has " + std::to_string(v.size()));
+    v = std::move(in);
+  }
   // A size or count written by StateWriter::count (never negative).
   std::int64_t count() {
     std::int64_t n = 0;

@@ -139,12 +139,7 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
   struct Live : ComponentStateOf<Live> {
     std::vector<Eigen::Matrix3d> Q;
     void save(StateWriter& out) const override { out.put(Q); }
-    void load(StateReader& in) override {
-      std::vector<Eigen::Matrix3d> q;
-      in.get(q);
-      if (q.size() != Q.size()) in.mismatch(std::to_string(q.size()) + " element rotations where this force field has " + std::to_string(Q.size()));
-      Q = std::move(q);
-    }
+    void load(StateReader& in) override { in.getSameSize(Q, "element rotations"); }
   };
   std::unique_ptr<ComponentState> initialState() const override {
     auto l = std::make_unique<Live>();

@@ -67,14 +67,8 @@ std::unique_ptr<ComponentState> TetrahedronFEMForceField::initialState() const {
 }
 
 void TetrahedronFEMForceField::Live::load(StateReader& in) {
-  std::vector<Eigen::Matrix3d> r;
-  Eigen::Matrix3Xd xl;
-  in.get(r);
-  in.get(xl);
-  if (r.size() != rot.size())
-    in.mismatch(std::to_string(r.size()) + " element frames where this force field has " + std::to_string(rot.size()));
-  rot = std::move(r);
-  xLast = std::move(xl);
+  in.getSameSize(rot, "element frames");
+  in.get(xLast);
 }
 
 void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&,

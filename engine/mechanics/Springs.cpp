@@ -31,12 +31,7 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
   struct Live : ComponentStateOf<Live> {
     std::vector<Eigen::Matrix3d> J;
     void save(StateWriter& out) const override { out.put(J); }
-    void load(StateReader& in) override {
-      std::vector<Eigen::Matrix3d> j;
-      in.get(j);
-      if (j.size() != J.size()) in.mismatch(std::to_string(j.size()) + " springs where this force field has " + std::to_string(J.size()));
-      J = std::move(j);
-    }
+    void load(StateReader& in) override { in.getSameSize(J, "springs"); }
   };
   std::unique_ptr<ComponentState> initialState() const override {
     auto l = std::make_unique<Live>();
