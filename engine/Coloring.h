@@ -1,5 +1,9 @@
-// Greedy coloring of elements so that elements of one color share no node: each color can be
-// processed in parallel and results do not depend on the thread count.
+// Coloring of elements so that elements of one color share no node: each color can be processed
+// in parallel and results do not depend on the thread count. Elements are colored in runs of
+// consecutive elements (a run takes one color and one thread), so that each thread walks
+// neighbouring elements in mesh order and its scattered writes stay in cache: with single
+// elements colored, one color spreads over the whole mesh and the gel phantom's stiffness took
+// 1.4x as long to assemble.
 #pragma once
 
 #include <Eigen/Core>
@@ -7,26 +11,35 @@
 
 namespace viscera {
 
-// `elements` is k x #elements of node indices; returns element ids grouped by color.
-std::vector<std::vector<int>> colorElements(const Eigen::Ref<const Eigen::MatrixXi>& elements, int nodeCount);
+struct ElementColoring {
+  int run = 1;                           // elements per run
+  std::vector<std::vector<int>> colors;  // element ids by color: whole runs, in increasing order
+};
 
-// Runs fn(element) for every element, color by color, in parallel within a color.
+// `elements` is k x #elements of node indices.
+ElementColoring colorElements(const Eigen::Ref<const Eigen::MatrixXi>& elements, int nodeCount, int run = 32);
+
+// Runs fn(element) for every element, color by color, in parallel over the runs of a color.
 template <class Fn>
-void forEachColored(const std::vector<std::vector<int>>& colors, Fn&& fn);
+void forEachColored(const ElementColoring& coloring, Fn&& fn);
 
 }  // namespace viscera
 
 #include <tbb/parallel_for.h>
 
 template <class Fn>
-void viscera::forEachColored(const std::vector<std::vector<int>>& colors, Fn&& fn) {
-  for (const auto& c : colors) {
+void viscera::forEachColored(const ElementColoring& coloring, Fn&& fn) {
+  const size_t run = coloring.run;
+  for (const auto& c : coloring.colors) {
     if (c.size() < 256) {
       for (int e : c) fn(e);
       continue;
     }
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, c.size(), 128), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t k = r.begin(); k < r.end(); ++k) fn(c[k]);
+    // Every run of a color is whole (`run` elements) except perhaps its last.
+    const size_t runs = (c.size() + run - 1) / run;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, (128 + run - 1) / run), [&](const tbb::blocked_range<size_t>& r) {
+      const size_t end = std::min(c.size(), r.end() * run);
+      for (size_t k = r.begin() * run; k < end; ++k) fn(c[k]);
     });
   }
 }

@@ -105,11 +105,11 @@ void MechanicalSystem::prepareAssembly() {
   patternReady_ = true;
 }
 
-void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale) const {
+void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale, double factor) const {
   if (!patternReady_) throw std::logic_error("MechanicalSystem::assembleStiffness before prepareAssembly");
   if (K.blockRows() != nodes()) K = pattern_;
   K.setZero();
-  for (ForceField* ff : forces_) ff->addStiffness(s, K, ff->rayleighDamped() ? 1.0 : undampedScale);
+  for (ForceField* ff : forces_) ff->addStiffness(s, K, factor * (ff->rayleighDamped() ? 1.0 : undampedScale));
 }
 
 void MechanicalSystem::addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {

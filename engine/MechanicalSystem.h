@@ -53,9 +53,9 @@ class MechanicalSystem {
   void prepareAssembly();
   // The prepared pattern, with zero values.
   const BlockSparseMatrix& pattern() const { return pattern_; }
-  // K_damped + undampedScale K_undamped (as the force fields report it at their last
+  // factor (K_damped + undampedScale K_undamped) (as the force fields report it at their last
   // linearisation in `s`) into `K`, which takes the prepared pattern on first use.
-  void assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale = 1.0) const;
+  void assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale = 1.0, double factor = 1.0) const;
   // Zeroes the rows of fixed nodes and projects those of partly held ones.
   void project(Eigen::Matrix3Xd& v) const;
   // Non-finite values and inverted elements at (x, v), as a failure, or nothing.

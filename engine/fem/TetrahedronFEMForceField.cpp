@@ -1,6 +1,7 @@
 #include <Eigen/Dense>
 #include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/fem/HexahedronFEMForceField.h"
+#include "engine/fem/TetSimd.h"
 #include "io/scene/InputCache.h"
 
 #include <stdexcept>
@@ -50,7 +51,7 @@ void TetrahedronFEMForceField::init() {
     }
     rot0_[e] = fem::frame(method_, X);
   }
-  colors_ = *io::cachedDerived<std::vector<std::vector<int>>>("element colouring", io::keyBytes(tets_) + std::to_string(n),
+  colors_ = io::cachedDerived<ElementColoring>("element colouring", io::keyBytes(tets_) + std::to_string(n),
                                                               [&] { return colorElements(tets_, n); });
 }
 
@@ -76,7 +77,15 @@ void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, con
   Live& l = live(s);
   if (exact_) l.xLast = x;
   std::vector<Eigen::Matrix3d>& rot = l.rot;
-  forEachColored(colors_, [&](int e) {
+  if (method_ == fem::Method::Large && !svd_) {
+    forEachColored(*colors_, [&](int e) {
+      const fem::ElementRest& r = rest_[e];
+      fem::addLargeTetrahedronForce(x.data(), &tets_(0, e), r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu,
+                                    rot[e].data(), f.data());
+    });
+    return;
+  }
+  forEachColored(*colors_, [&](int e) {
     const Mat34 xe = gather(x, e);
     Mat34 fe;
     if (svd_) {
@@ -98,7 +107,7 @@ void TetrahedronFEMForceField::addDForce(const State& s, const Eigen::Matrix3Xd&
                                          double kFactor) const {
   const Live& l = live(s);
   if (exact_ && method_ != fem::Method::Small) {
-    forEachColored(colors_, [&](int e) {
+    forEachColored(*colors_, [&](int e) {
       const Mat34 d = gather(dx, e);
       Eigen::Matrix<double, 12, 1> r = stiffnessOf(l, e) * Eigen::Map<const Eigen::Matrix<double, 12, 1>>(d.data());
       for (int k = 0; k < 4; ++k) df.col(tets_(k, e)) += kFactor * r.segment<3>(3 * k);
@@ -106,7 +115,7 @@ void TetrahedronFEMForceField::addDForce(const State& s, const Eigen::Matrix3Xd&
     return;
   }
   // K dx per element without forming K: with h = R^T G and M = h dX^T, (K dx)_i = -V sigma(M) h_i.
-  forEachColored(colors_, [&](int e) {
+  forEachColored(*colors_, [&](int e) {
     const fem::ElementRest& r = rest_[e];
     const Mat34 h = l.rot[e].transpose() * r.G;
     const Mat34 d = gather(dx, e);
@@ -132,7 +141,8 @@ void TetrahedronFEMForceField::prepareAssembly(const BlockSparseMatrix& K) {
 void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
   if (slots_.size() != static_cast<size_t>(tets_.cols())) throw std::logic_error("addStiffness before prepareAssembly");
   const Live& l = live(s);
-  forEachColored(colors_, [&](int e) {
+  double* values = K.values();
+  forEachColored(*colors_, [&](int e) {
     if (exact_ && method_ != fem::Method::Small) {
       const Mat12 Ke = stiffnessOf(l, e);
       for (int i = 0; i < 4; ++i)
@@ -140,30 +150,10 @@ void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K
       return;
     }
     // Blocks -V times the law's coupling of the rotated gradients h = R^T G (Lame::coupling,
-    // written out: this loop is a third of a step):
-    //   B(r, c) = a (lambda h_i[r] h_j[c] + mu h_j[r] h_i[c] + mu (g_i . g_j) delta_rc).
+    // written out on plain arrays, vectorised where the CPU allows: this loop is a third of a step).
     const fem::ElementRest& r = rest_[e];
-    const Mat34 h = l.rot[e].transpose() * r.G;
-    const double a = -kFactor * r.volume, la = a * r.lame.lambda, ma = a * r.lame.mu;
-    double* values = K.values();
-    const auto& slot = slots_[e];
-    // Block (j, i) is the transpose of block (i, j): compute the upper half only.
-    for (int i = 0; i < 4; ++i)
-      for (int j = i; j < 4; ++j) {
-        double B[9];  // column-major, as the matrix stores its blocks
-        for (int c = 0; c < 3; ++c)
-          for (int rr = 0; rr < 3; ++rr) B[3 * c + rr] = la * h(rr, i) * h(c, j) + ma * h(rr, j) * h(c, i);
-        const double d = ma * r.G.col(i).dot(r.G.col(j));
-        B[0] += d;
-        B[4] += d;
-        B[8] += d;
-        double* kij = values + 9 * static_cast<size_t>(slot[4 * i + j]);
-        for (int k = 0; k < 9; ++k) kij[k] += B[k];
-        if (j == i) continue;
-        double* kji = values + 9 * static_cast<size_t>(slot[4 * j + i]);
-        for (int c = 0; c < 3; ++c)
-          for (int rr = 0; rr < 3; ++rr) kji[3 * c + rr] += B[3 * rr + c];
-      }
+    const double a = -kFactor * r.volume;
+    fem::addTetrahedronBlocks(l.rot[e].data(), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots_[e].data());
   });
 }
 

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "engine/Roles.h"
@@ -13,6 +14,7 @@
 namespace viscera {
 
 class Registry;
+struct ElementColoring;
 
 class TetrahedronFEMForceField : public Component, public ForceField, public Stateful {
  public:
@@ -62,7 +64,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   TetList tets_;
   std::vector<fem::ElementRest> rest_;
   std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest
-  std::vector<std::vector<int>> colors_;
+  std::shared_ptr<const ElementColoring> colors_;  // shared by models of one mesh
   std::vector<std::array<int, 16>> slots_; // block slots of each element in the assembled matrix
 };
 

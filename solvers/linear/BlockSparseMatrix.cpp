@@ -1,6 +1,10 @@
 #include "solvers/linear/BlockSparseMatrix.h"
+#include "core/Simd.h"
 
 #include <algorithm>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 #include <tbb/parallel_for.h>
 
 namespace viscera {
@@ -27,7 +31,8 @@ void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int,
     }
   }
   rowStart_[n_] = static_cast<int>(cols_.size());
-  values_.assign(9 * cols_.size(), 0.0);
+  // One double of padding: the vector kernels load each block column as four doubles.
+  values_.assign(9 * cols_.size() + 1, 0.0);
 }
 
 int BlockSparseMatrix::slot(int i, int j) const {
@@ -42,15 +47,71 @@ void BlockSparseMatrix::scale(double a) {
   for (double& v : values_) v *= a;
 }
 
-void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
-  auto rowsRange = [&](int r0, int r1) {
-    for (int i = r0; i < r1; ++i) {
-      Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-      for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
-        acc.noalias() += block(s) * x.segment<3>(3 * cols_[s]);
-      y.segment<3>(3 * i) = acc;
+namespace {
+
+using RowsKernel = void (*)(const int* rowStart, const int* cols, const double* values, const double* x, double* y,
+                            int r0, int r1);
+
+void multiplyRowsBaseline(const int* rowStart, const int* cols, const double* values, const double* x, double* y,
+                          int r0, int r1) {
+  for (int i = r0; i < r1; ++i) {
+    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+    for (int s = rowStart[i]; s < rowStart[i + 1]; ++s)
+      acc.noalias() += Eigen::Map<const Eigen::Matrix3d>(values + 9 * s) * Eigen::Map<const Eigen::Vector3d>(x + 3 * cols[s]);
+    Eigen::Map<Eigen::Vector3d>(y + 3 * i) = acc;
+  }
+}
+
+#if defined(__x86_64__)
+// One block = three columns; each is loaded as four doubles (the fourth belongs to the next
+// block, or to the padding after the last: its lane is never stored).
+__attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, const int* cols, const double* values,
+                                                          const double* x, double* y, int r0, int r1) {
+  for (int i = r0; i < r1; ++i) {
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
+    int s = rowStart[i];
+    const int end = rowStart[i + 1];
+    for (; s + 1 < end; s += 2) {
+      const double* b = values + 9 * s;
+      const double* u = x + 3 * cols[s];
+      const double* w = x + 3 * cols[s + 1];
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), _mm256_broadcast_sd(u), a0);
+      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 9), _mm256_broadcast_sd(w), a1);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), _mm256_broadcast_sd(u + 1), a0);
+      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 12), _mm256_broadcast_sd(w + 1), a1);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), _mm256_broadcast_sd(u + 2), a0);
+      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 15), _mm256_broadcast_sd(w + 2), a1);
     }
-  };
+    if (s < end) {
+      const double* b = values + 9 * s;
+      const double* u = x + 3 * cols[s];
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), _mm256_broadcast_sd(u), a0);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), _mm256_broadcast_sd(u + 1), a0);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), _mm256_broadcast_sd(u + 2), a0);
+    }
+    alignas(32) double out[4];
+    _mm256_store_pd(out, _mm256_add_pd(a0, a1));
+    y[3 * i] = out[0];
+    y[3 * i + 1] = out[1];
+    y[3 * i + 2] = out[2];
+  }
+}
+#endif
+
+RowsKernel rowsKernel() {
+#if defined(__x86_64__)
+  static const RowsKernel k = useAvx2() ? multiplyRowsAvx2 : multiplyRowsBaseline;
+  return k;
+#else
+  return multiplyRowsBaseline;
+#endif
+}
+
+}  // namespace
+
+void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
+  const RowsKernel kernel = rowsKernel();
+  auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1); };
   if (n_ < 512) {
     rowsRange(0, n_);
     return;

@@ -64,10 +64,11 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     LinearProblem problem;
     BlockSparseMatrix& A = l.A;
     if (linear_->needsMatrix()) {
-      sys_->assembleStiffness(st, A, uScale);
+      // A = kFact K + mFact M, constrained; K v read from kFact K before the mass joins it.
+      sys_->assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
       A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
-      // A = kFact K + mFact M, constrained.
-      A.scale(kFact);
+      if (kFact != 0) Kv *= 1.0 / kFact;
+      else A.setZero();
       sys_->addMass(A, mFact);
       sys_->constrain(A);
       problem.matrix = &A;

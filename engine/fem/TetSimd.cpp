@@ -1,0 +1,163 @@
+#include "engine/fem/TetSimd.h"
+
+#include "core/Simd.h"
+
+#include <cmath>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+namespace viscera::fem {
+
+namespace {
+
+using BlocksKernel = void (*)(const double*, const double*, double, double, double*, const int*);
+
+void blocksGeneric(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
+  double h[12];  // h = R^T G, column-major 3 x 4
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) h[3 * k + r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const double* hi = h + 3 * i;
+      const double* hj = h + 3 * j;
+      const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
+      double* k = values + 9 * static_cast<long>(slots[4 * i + j]);
+      for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) k[3 * c + r] += la * hi[r] * hj[c] + ma * hj[r] * hi[c] + (r == c ? d : 0.0);
+    }
+}
+
+// One body for both versions (inlined into each, so the vector version gets fused multiply-adds).
+__attribute__((always_inline)) inline void largeForce(const double* x, const int* nodes, const double* X, const double* G,
+                                                      double volume, double lambda, double mu, double* R, double* f) {
+  double p[4][3];
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(nodes[k]) + r];
+  double e[4][3];  // edges from node 0 (e[0] = 0)
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) e[k][r] = p[k][r] - p[0][r];
+  // Frame: x along edge 1, z normal to edges 1 and 2, y = z cross x.
+  const double na = std::sqrt(e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2]);
+  const double ia = 1.0 / na;
+  const double ex[3] = {e[1][0] * ia, e[1][1] * ia, e[1][2] * ia};
+  double w[3] = {ex[1] * e[2][2] - ex[2] * e[2][1], ex[2] * e[2][0] - ex[0] * e[2][2], ex[0] * e[2][1] - ex[1] * e[2][0]};
+  const double nw = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+  const double iw = 1.0 / nw;
+  const double ez[3] = {w[0] * iw, w[1] * iw, w[2] * iw};
+  const double ey[3] = {ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2], ez[0] * ex[1] - ez[1] * ex[0]};
+  for (int c = 0; c < 3; ++c) {
+    R[3 * c] = ex[c];
+    R[3 * c + 1] = ey[c];
+    R[3 * c + 2] = ez[c];
+  }
+  // Displacements in the element frame, U_k = R (p_k - p_0) - X_k, and their gradient H = U G^T.
+  double H[3][3] = {};
+  for (int k = 0; k < 4; ++k) {
+    const double u[3] = {ex[0] * e[k][0] + ex[1] * e[k][1] + ex[2] * e[k][2] - X[3 * k],
+                         ey[0] * e[k][0] + ey[1] * e[k][1] + ey[2] * e[k][2] - X[3 * k + 1],
+                         ez[0] * e[k][0] + ez[1] * e[k][1] + ez[2] * e[k][2] - X[3 * k + 2]};
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) H[r][c] += u[r] * G[3 * k + c];
+  }
+  // sigma = lambda tr(H) I + mu (H + H^T); nodal forces -V sigma g_k, turned back to the world.
+  const double tr = lambda * (H[0][0] + H[1][1] + H[2][2]);
+  const double s00 = tr + 2 * mu * H[0][0], s11 = tr + 2 * mu * H[1][1], s22 = tr + 2 * mu * H[2][2];
+  const double s01 = mu * (H[0][1] + H[1][0]), s02 = mu * (H[0][2] + H[2][0]), s12 = mu * (H[1][2] + H[2][1]);
+  for (int k = 0; k < 4; ++k) {
+    const double* g = G + 3 * k;
+    const double l0 = -volume * (s00 * g[0] + s01 * g[1] + s02 * g[2]);
+    const double l1 = -volume * (s01 * g[0] + s11 * g[1] + s12 * g[2]);
+    const double l2 = -volume * (s02 * g[0] + s12 * g[1] + s22 * g[2]);
+    double* fk = f + 3 * static_cast<long>(nodes[k]);
+    for (int r = 0; r < 3; ++r) fk[r] += l0 * ex[r] + l1 * ey[r] + l2 * ez[r];
+  }
+}
+
+using ForceKernel = void (*)(const double*, const int*, const double*, const double*, double, double, double, double*, double*);
+
+void largeForceGeneric(const double* x, const int* nodes, const double* X, const double* G, double volume, double lambda,
+                       double mu, double* R, double* f) {
+  largeForce(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+#if defined(__x86_64__)
+__attribute__((target("avx2,fma"))) void largeForceAvx2(const double* x, const int* nodes, const double* X, const double* G,
+                                                        double volume, double lambda, double mu, double* R, double* f) {
+  largeForce(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+// A column-major 3 x 3 block is nine doubles: two four-lane vectors, (B00 B10 B20 B01) and
+// (B11 B21 B02 B12), and B22. With P = (h0 h1 h2 h0), S = (h0 h0 h0 h1), Q = (h1 h2 h0 h1),
+// T = (h1 h1 h2 h2) of a node's h, the block (i, j) is
+//   la P_i S_j + ma P_j S_i,   la Q_i T_j + ma Q_j T_i,   (la + ma) h_i2 h_j2,
+// plus d = ma g_i . g_j on its diagonal (lanes 0 of both vectors and B22). Loads and stores never
+// overlap, so no store has to be forwarded to a wider load.
+__attribute__((target("avx2,fma"))) void blocksAvx2(const double* R, const double* G, double la, double ma, double* values,
+                                                    const int* slots) {
+  double h[4][3];  // h = R^T G
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) h[k][r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
+  __m256d S[4], T[4], laP[4], laQ[4], maP[4], maQ[4];
+  for (int k = 0; k < 4; ++k) {
+    const double* v = h[k];
+    const __m256d P = _mm256_set_pd(v[0], v[2], v[1], v[0]);
+    const __m256d Q = _mm256_set_pd(v[1], v[0], v[2], v[1]);
+    S[k] = _mm256_set_pd(v[1], v[0], v[0], v[0]);
+    T[k] = _mm256_set_pd(v[2], v[2], v[1], v[1]);
+    laP[k] = _mm256_mul_pd(_mm256_set1_pd(la), P);
+    laQ[k] = _mm256_mul_pd(_mm256_set1_pd(la), Q);
+    maP[k] = _mm256_mul_pd(_mm256_set1_pd(ma), P);
+    maQ[k] = _mm256_mul_pd(_mm256_set1_pd(ma), Q);
+  }
+  const double lm = la + ma;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
+      const __m256d diag = _mm256_set_pd(0, 0, 0, d);
+      const __m256d v0 = _mm256_fmadd_pd(laP[i], S[j], _mm256_fmadd_pd(maP[j], S[i], diag));
+      const __m256d v1 = _mm256_fmadd_pd(laQ[i], T[j], _mm256_fmadd_pd(maQ[j], T[i], diag));
+      double* k = values + 9 * static_cast<long>(slots[4 * i + j]);
+      _mm256_storeu_pd(k, _mm256_add_pd(_mm256_loadu_pd(k), v0));
+      _mm256_storeu_pd(k + 4, _mm256_add_pd(_mm256_loadu_pd(k + 4), v1));
+      k[8] += lm * h[i][2] * h[j][2] + d;
+    }
+}
+
+#endif
+
+// Chosen once, on first use.
+struct Kernels {
+  bool avx2 = false;
+  BlocksKernel blocks = blocksGeneric;
+  ForceKernel force = largeForceGeneric;
+  Kernels() {
+#if defined(__x86_64__)
+    if ((avx2 = useAvx2())) {
+      blocks = blocksAvx2;
+      force = largeForceAvx2;
+    }
+#endif
+  }
+};
+
+const Kernels& kernels() {
+  static const Kernels k;
+  return k;
+}
+
+}  // namespace
+
+void addTetrahedronBlocks(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
+  kernels().blocks(R, G, la, ma, values, slots);
+}
+
+void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
+                              double lambda, double mu, double* R, double* f) {
+  kernels().force(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+const char* tetrahedronKernelsVersion() { return kernels().avx2 ? "avx2" : "generic"; }
+
+}  // namespace viscera::fem

@@ -1,0 +1,28 @@
+// The assembled step's hottest per-element kernel on plain arrays, with a vector (AVX2 + FMA)
+// version chosen at run time when the CPU has it: the build targets a baseline x86-64, and this
+// loop is a third of the gel phantom's step. Both versions compute the same blocks; they differ
+// only in rounding (fused multiply-adds).
+#pragma once
+
+namespace viscera::fem {
+
+// Adds one tetrahedron's stiffness to the assembled matrix: the blocks
+//   K_ij += a (lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I),   h = R^T G,
+// for all 16 node pairs (i, j), where `la` = a lambda and `ma` = a mu. R is the element frame
+// (3 x 3, column-major), G the rest shape-function gradients (3 x 4, column-major), `values` the
+// matrix's block values (column-major 3 x 3 blocks)
+// and `slots` the 16 block slots of the element, row-major (slot of (i, j) at 4 i + j).
+void addTetrahedronBlocks(const double* R, const double* G, double la, double ma, double* values, const int* slots);
+
+// The corotational ("large") element force of SOFA's edge frame (fem::frameLarge,
+// fem::elementForce) in one pass: reads the element's nodes `nodes` from positions x (3 x n,
+// column-major), writes its frame to R (column-major) and adds its nodal forces to f (3 x n).
+// X and G are the rest positions in the element frame and the shape-function gradients (3 x 4,
+// column-major).
+void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
+                              double lambda, double mu, double* R, double* f);
+
+// Which version the kernels run: "avx2" or "generic".: "avx2" or "generic".
+const char* tetrahedronKernelsVersion();
+
+}  // namespace viscera::fem
