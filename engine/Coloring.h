@@ -2,8 +2,8 @@
 // in parallel and results do not depend on the thread count. Elements are colored in runs of
 // consecutive elements (a run takes one color and one thread), so that each thread walks
 // neighbouring elements in mesh order and its scattered writes stay in cache: with single
-// elements colored, one color spreads over the whole mesh and the gel phantom's stiffness took
-// 1.4x as long to assemble.
+// elements colored, one color spreads over the whole mesh, and the gel phantom's step took 1.4x
+// as long.
 #pragma once
 
 #include <Eigen/Core>
@@ -23,6 +23,11 @@ ElementColoring colorElements(const Eigen::Ref<const Eigen::MatrixXi>& elements,
 template <class Fn>
 void forEachColored(const ElementColoring& coloring, Fn&& fn);
 
+// Runs fn(first, count) for every run, the consecutive elements first .. first + count - 1,
+// color by color, in parallel over the runs of a color.
+template <class Fn>
+void forEachColoredRun(const ElementColoring& coloring, Fn&& fn);
+
 }  // namespace viscera
 
 #include <tbb/parallel_for.h>
@@ -40,6 +45,22 @@ void viscera::forEachColored(const ElementColoring& coloring, Fn&& fn) {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, (128 + run - 1) / run), [&](const tbb::blocked_range<size_t>& r) {
       const size_t end = std::min(c.size(), r.end() * run);
       for (size_t k = r.begin() * run; k < end; ++k) fn(c[k]);
+    });
+  }
+}
+
+template <class Fn>
+void viscera::forEachColoredRun(const ElementColoring& coloring, Fn&& fn) {
+  const size_t run = coloring.run;
+  for (const auto& c : coloring.colors) {
+    const size_t runs = (c.size() + run - 1) / run;
+    auto body = [&](size_t k) { fn(c[k * run], static_cast<int>(std::min(run, c.size() - k * run))); };
+    if (c.size() < 256) {
+      for (size_t k = 0; k < runs; ++k) body(k);
+      continue;
+    }
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, (128 + run - 1) / run), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t k = r.begin(); k < r.end(); ++k) body(k);
     });
   }
 }

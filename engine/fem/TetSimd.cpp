@@ -3,6 +3,7 @@
 #include "core/Simd.h"
 
 #include <cmath>
+#include <cstring>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -11,6 +12,9 @@
 namespace viscera::fem {
 
 namespace {
+
+// Fields per element in largeTetrahedraLanes: X (12), G (12), volume, lambda, mu, unused.
+constexpr int kLaneFields = 28;
 
 using BlocksKernel = void (*)(const double*, const double*, double, double, double*, const int*);
 
@@ -29,63 +33,122 @@ void blocksGeneric(const double* R, const double* G, double la, double ma, doubl
     }
 }
 
-// One body for both versions (inlined into each, so the vector version gets fused multiply-adds).
-__attribute__((always_inline)) inline void largeForce(const double* x, const int* nodes, const double* X, const double* G,
-                                                      double volume, double lambda, double mu, double* R, double* f) {
-  double p[4][3];
-  for (int k = 0; k < 4; ++k)
-    for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(nodes[k]) + r];
-  double e[4][3];  // edges from node 0 (e[0] = 0)
+// Four doubles, one element per lane (GCC's vector extension: the operators compile to AVX in
+// the AVX2 kernels and are used nowhere else).
+typedef double Lanes __attribute__((vector_size(32)));
+
+// out = 1 / sqrt(v), lane by lane (arguments by reference: no vector crosses a call boundary).
+inline void reciprocalRoot(const double& v, double& out) { out = 1.0 / std::sqrt(v); }
+inline void reciprocalRoot(const Lanes& v, Lanes& out) {
+  out = 1.0 / Lanes{std::sqrt(v[0]), std::sqrt(v[1]), std::sqrt(v[2]), std::sqrt(v[3])};
+}
+
+// The element force of the corotational ("large") tetrahedron, for one element (T = double) or
+// four (T = Lanes). p: node positions; X, G: rest positions in the element frame and shape-
+// function gradients (column-major 3 x 4); R: the frame (column-major); f: nodal forces.
+template <class T>
+__attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const T* X, const T* G, const T& volume,
+                                                      const T& lambda, const T& mu, T (&R)[9], T (&f)[4][3]) {
+  T e[4][3];  // edges from node 0 (e[0] = 0)
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) e[k][r] = p[k][r] - p[0][r];
   // Frame: x along edge 1, z normal to edges 1 and 2, y = z cross x.
-  const double na = std::sqrt(e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2]);
-  const double ia = 1.0 / na;
-  const double ex[3] = {e[1][0] * ia, e[1][1] * ia, e[1][2] * ia};
-  double w[3] = {ex[1] * e[2][2] - ex[2] * e[2][1], ex[2] * e[2][0] - ex[0] * e[2][2], ex[0] * e[2][1] - ex[1] * e[2][0]};
-  const double nw = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-  const double iw = 1.0 / nw;
-  const double ez[3] = {w[0] * iw, w[1] * iw, w[2] * iw};
-  const double ey[3] = {ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2], ez[0] * ex[1] - ez[1] * ex[0]};
+  T ia, iw;
+  reciprocalRoot(e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2], ia);
+  const T ex[3] = {e[1][0] * ia, e[1][1] * ia, e[1][2] * ia};
+  const T w[3] = {ex[1] * e[2][2] - ex[2] * e[2][1], ex[2] * e[2][0] - ex[0] * e[2][2], ex[0] * e[2][1] - ex[1] * e[2][0]};
+  reciprocalRoot(w[0] * w[0] + w[1] * w[1] + w[2] * w[2], iw);
+  const T ez[3] = {w[0] * iw, w[1] * iw, w[2] * iw};
+  const T ey[3] = {ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2], ez[0] * ex[1] - ez[1] * ex[0]};
   for (int c = 0; c < 3; ++c) {
     R[3 * c] = ex[c];
     R[3 * c + 1] = ey[c];
     R[3 * c + 2] = ez[c];
   }
   // Displacements in the element frame, U_k = R (p_k - p_0) - X_k, and their gradient H = U G^T.
-  double H[3][3] = {};
+  T H[3][3] = {};
   for (int k = 0; k < 4; ++k) {
-    const double u[3] = {ex[0] * e[k][0] + ex[1] * e[k][1] + ex[2] * e[k][2] - X[3 * k],
-                         ey[0] * e[k][0] + ey[1] * e[k][1] + ey[2] * e[k][2] - X[3 * k + 1],
-                         ez[0] * e[k][0] + ez[1] * e[k][1] + ez[2] * e[k][2] - X[3 * k + 2]};
+    const T u[3] = {ex[0] * e[k][0] + ex[1] * e[k][1] + ex[2] * e[k][2] - X[3 * k],
+                    ey[0] * e[k][0] + ey[1] * e[k][1] + ey[2] * e[k][2] - X[3 * k + 1],
+                    ez[0] * e[k][0] + ez[1] * e[k][1] + ez[2] * e[k][2] - X[3 * k + 2]};
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) H[r][c] += u[r] * G[3 * k + c];
   }
   // sigma = lambda tr(H) I + mu (H + H^T); nodal forces -V sigma g_k, turned back to the world.
-  const double tr = lambda * (H[0][0] + H[1][1] + H[2][2]);
-  const double s00 = tr + 2 * mu * H[0][0], s11 = tr + 2 * mu * H[1][1], s22 = tr + 2 * mu * H[2][2];
-  const double s01 = mu * (H[0][1] + H[1][0]), s02 = mu * (H[0][2] + H[2][0]), s12 = mu * (H[1][2] + H[2][1]);
+  const T tr = lambda * (H[0][0] + H[1][1] + H[2][2]);
+  const T s00 = tr + 2.0 * mu * H[0][0], s11 = tr + 2.0 * mu * H[1][1], s22 = tr + 2.0 * mu * H[2][2];
+  const T s01 = mu * (H[0][1] + H[1][0]), s02 = mu * (H[0][2] + H[2][0]), s12 = mu * (H[1][2] + H[2][1]);
   for (int k = 0; k < 4; ++k) {
-    const double* g = G + 3 * k;
-    const double l0 = -volume * (s00 * g[0] + s01 * g[1] + s02 * g[2]);
-    const double l1 = -volume * (s01 * g[0] + s11 * g[1] + s12 * g[2]);
-    const double l2 = -volume * (s02 * g[0] + s12 * g[1] + s22 * g[2]);
-    double* fk = f + 3 * static_cast<long>(nodes[k]);
-    for (int r = 0; r < 3; ++r) fk[r] += l0 * ex[r] + l1 * ey[r] + l2 * ez[r];
+    const T* g = G + 3 * k;
+    const T l0 = -volume * (s00 * g[0] + s01 * g[1] + s02 * g[2]);
+    const T l1 = -volume * (s01 * g[0] + s11 * g[1] + s12 * g[2]);
+    const T l2 = -volume * (s02 * g[0] + s12 * g[1] + s22 * g[2]);
+    for (int r = 0; r < 3; ++r) f[k][r] = l0 * ex[r] + l1 * ey[r] + l2 * ez[r];
   }
 }
 
+// One element, from the model's rest data.
+__attribute__((always_inline)) inline void largeForceOne(const double* x, const int* nodes, const double* X, const double* G,
+                                                         double volume, double lambda, double mu, double* R, double* f) {
+  double p[4][3], Rl[9], fl[4][3];
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(nodes[k]) + r];
+  largeForce(p, X, G, volume, lambda, mu, Rl, fl);
+  for (int c = 0; c < 9; ++c) R[c] = Rl[c];
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) f[3 * static_cast<long>(nodes[k]) + r] += fl[k][r];
+}
+
 using ForceKernel = void (*)(const double*, const int*, const double*, const double*, double, double, double, double*, double*);
+using ForcesKernel = void (*)(const double*, const int*, int, int, const ElementRest*, const double*, double*, double*);
 
 void largeForceGeneric(const double* x, const int* nodes, const double* X, const double* G, double volume, double lambda,
                        double mu, double* R, double* f) {
-  largeForce(x, nodes, X, G, volume, lambda, mu, R, f);
+  largeForceOne(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+void largeForcesGeneric(const double* x, const int* tets, int first, int count, const ElementRest* rest, const double*,
+                        double* R, double* f) {
+  for (int e = first; e < first + count; ++e) {
+    const ElementRest& r = rest[e];
+    largeForceOne(x, tets + 4 * e, r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu, R + 9 * e, f);
+  }
 }
 
 #if defined(__x86_64__)
 __attribute__((target("avx2,fma"))) void largeForceAvx2(const double* x, const int* nodes, const double* X, const double* G,
                                                         double volume, double lambda, double mu, double* R, double* f) {
-  largeForce(x, nodes, X, G, volume, lambda, mu, R, f);
+  largeForceOne(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+// Groups of four elements starting at a multiple of four run in the lanes; the rest one by one.
+__attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const int* tets, int first, int count,
+                                                         const ElementRest* rest, const double* lanes, double* R, double* f) {
+  const int end = first + count;
+  int e = first;
+  for (; e < end; ++e) {
+    if (e % 4 == 0 && e + 4 <= end) {
+      const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
+      Lanes in[kLaneFields], p[4][3], Rl[9], fl[4][3];
+      for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
+      const int* t = tets + 4 * e;
+      for (int k = 0; k < 4; ++k)
+        for (int r = 0; r < 3; ++r)
+          p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
+                          x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
+      largeForce(p, in, in + 12, in[24], in[25], in[26], Rl, fl);
+      for (int l = 0; l < 4; ++l) {
+        double* Re = R + 9 * static_cast<long>(e + l);
+        for (int c = 0; c < 9; ++c) Re[c] = Rl[c][l];
+        for (int k = 0; k < 4; ++k)
+          for (int r = 0; r < 3; ++r) f[3 * static_cast<long>(t[4 * l + k]) + r] += fl[k][r][l];
+      }
+      e += 3;
+      continue;
+    }
+    const ElementRest& r = rest[e];
+    largeForceOne(x, tets + 4 * e, r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu, R + 9 * e, f);
+  }
 }
 
 // A column-major 3 x 3 block is nine doubles: two four-lane vectors, (B00 B10 B20 B01) and
@@ -132,11 +195,13 @@ struct Kernels {
   bool avx2 = false;
   BlocksKernel blocks = blocksGeneric;
   ForceKernel force = largeForceGeneric;
+  ForcesKernel forces = largeForcesGeneric;
   Kernels() {
 #if defined(__x86_64__)
     if ((avx2 = useAvx2())) {
       blocks = blocksAvx2;
       force = largeForceAvx2;
+      forces = largeForcesAvx2;
     }
 #endif
   }
@@ -156,6 +221,28 @@ void addTetrahedronBlocks(const double* R, const double* G, double la, double ma
 void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
                               double lambda, double mu, double* R, double* f) {
   kernels().force(x, nodes, X, G, volume, lambda, mu, R, f);
+}
+
+std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest) {
+  const size_t groups = (rest.size() + 3) / 4;
+  std::vector<double> lanes(kLaneFields * 4 * groups, 0.0);
+  for (size_t e = 0; e < rest.size(); ++e) {
+    double* g = lanes.data() + kLaneFields * 4 * (e / 4) + e % 4;
+    const ElementRest& r = rest[e];
+    for (int k = 0; k < 12; ++k) {
+      g[4 * k] = r.X.data()[k];
+      g[4 * (12 + k)] = r.G.data()[k];
+    }
+    g[4 * 24] = r.volume;
+    g[4 * 25] = r.lame.lambda;
+    g[4 * 26] = r.lame.mu;
+  }
+  return lanes;
+}
+
+void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
+                              const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f) {
+  kernels().forces(x, tets, first, count, rest.data(), lanes.data(), R->data(), f);
 }
 
 const char* tetrahedronKernelsVersion() { return kernels().avx2 ? "avx2" : "generic"; }

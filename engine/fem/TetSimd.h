@@ -4,6 +4,11 @@
 // only in rounding (fused multiply-adds).
 #pragma once
 
+#include <Eigen/Core>
+#include <vector>
+
+#include "engine/fem/TetKernel.h"
+
 namespace viscera::fem {
 
 // Adds one tetrahedron's stiffness to the assembled matrix: the blocks
@@ -21,6 +26,14 @@ void addTetrahedronBlocks(const double* R, const double* G, double la, double ma
 // column-major).
 void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
                               double lambda, double mu, double* R, double* f);
+
+// The rest data of consecutive elements in groups of four, one element per lane (structure of
+// arrays), for addLargeTetrahedraForces: part of the model, built once.
+std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest);
+// addLargeTetrahedronForce for elements [first, first + count) (tets: 4 nodes per element;
+// R: one frame per element), four at a time in the vector version.
+void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
+                              const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f);
 
 // Which version the kernels run: "avx2" or "generic".: "avx2" or "generic".
 const char* tetrahedronKernelsVersion();

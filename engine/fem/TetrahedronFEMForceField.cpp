@@ -51,6 +51,7 @@ void TetrahedronFEMForceField::init() {
     }
     rot0_[e] = fem::frame(method_, X);
   }
+  if (method_ == fem::Method::Large && !svd_) lanes_ = fem::largeTetrahedraLanes(rest_);
   colors_ = io::cachedDerived<ElementColoring>("element colouring", io::keyBytes(tets_) + std::to_string(n),
                                                               [&] { return colorElements(tets_, n); });
 }
@@ -78,10 +79,8 @@ void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, con
   if (exact_) l.xLast = x;
   std::vector<Eigen::Matrix3d>& rot = l.rot;
   if (method_ == fem::Method::Large && !svd_) {
-    forEachColored(*colors_, [&](int e) {
-      const fem::ElementRest& r = rest_[e];
-      fem::addLargeTetrahedronForce(x.data(), &tets_(0, e), r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu,
-                                    rot[e].data(), f.data());
+    forEachColoredRun(*colors_, [&](int first, int count) {
+      fem::addLargeTetrahedraForces(x.data(), tets_.data(), first, count, rest_, lanes_, rot.data(), f.data());
     });
     return;
   }

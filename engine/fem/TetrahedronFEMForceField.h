@@ -64,6 +64,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   TetList tets_;
   std::vector<fem::ElementRest> rest_;
   std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest
+  std::vector<double> lanes_;              // rest data four elements abreast (fem::largeTetrahedraLanes)
   std::shared_ptr<const ElementColoring> colors_;  // shared by models of one mesh
   std::vector<std::array<int, 16>> slots_; // block slots of each element in the assembled matrix
 };

@@ -60,6 +60,39 @@ TEST(VectorKernels, LargeForceMatchesTheEigenKernel) {
   }
 }
 
+// Elements 0..10 of a chain sharing nodes (e uses nodes e .. e + 3): two groups of four run in the
+// lanes, the rest one by one; started at element 1, no group is aligned.
+TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
+  const int count = 11, nodes = count + 3;
+  Eigen::Matrix3Xd rest(3, nodes);
+  for (int i = 0; i < nodes; ++i) rest.col(i) = Eigen::Vector3d(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
+  std::vector<fem::ElementRest> elements;
+  for (int e = 0; e < count; ++e) {
+    tets.col(e) << e, e + 1, e + 2, e + 3;
+    fem::Mat34 X;
+    for (int k = 0; k < 4; ++k) X.col(k) = rest.col(e + k);
+    elements.push_back(fem::restElement(fem::Method::Large, X, fem::Lame::fromYoungPoisson(uniform(1e3, 1e5), 0.4)));
+  }
+  const std::vector<double> lanes = fem::largeTetrahedraLanes(elements);
+  Eigen::Matrix3Xd x = rest;
+  for (int i = 0; i < 3 * nodes; ++i) x.data()[i] += uniform(-0.05, 0.05);
+  for (int first : {0, 1}) {
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, nodes), fref = Eigen::Matrix3Xd::Zero(3, nodes);
+    std::vector<Eigen::Matrix3d> R(count, Eigen::Matrix3d::Zero());
+    fem::addLargeTetrahedraForces(x.data(), tets.data(), first, count - first, elements, lanes, R.data(), f.data());
+    for (int e = first; e < count; ++e) {
+      fem::Mat34 xe;
+      for (int k = 0; k < 4; ++k) xe.col(k) = x.col(tets(k, e));
+      Eigen::Matrix3d Rref;
+      const fem::Mat34 fe = fem::elementForce(fem::Method::Large, elements[e], xe, Rref);
+      for (int k = 0; k < 4; ++k) fref.col(tets(k, e)) += fe.col(k);
+      EXPECT_LT((R[e] - Rref).cwiseAbs().maxCoeff(), 1e-12) << e;
+    }
+    EXPECT_LE((f - fref).cwiseAbs().maxCoeff(), 1e-12 * fref.cwiseAbs().maxCoeff()) << first;
+  }
+}
+
 TEST(VectorKernels, StiffnessBlocksMatchTheEigenKernel) {
   SCOPED_TRACE(fem::tetrahedronKernelsVersion());
   for (int trial = 0; trial < 200; ++trial) {
