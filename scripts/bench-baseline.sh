@@ -14,7 +14,8 @@ build=${1:?usage: bench-baseline.sh BUILD_DIR [BASELINE_COMMIT] [ROUNDS]}
 # 805c660: the last commit before the step work (model apart from state landed, exports unchanged).
 baseline=${2:-805c660}
 rounds=${3:-5}
-filter=${BENCH_FILTER:-'BM_GelPhantom_CG25/|BM_GelPhantom_Cholmod/|BM_GelPhantomCoarse_CG25/|BM_PalpationReplay/'}
+# Benchmark filters, run one at a time (the CSV report needs one set of counters per run).
+filters=${BENCH_FILTERS:-'BM_GelPhantom_CG25/ BM_GelPhantom_Cholmod/ BM_GelPhantomCoarse_CG25/ BM_PalpationReplay/'}
 base_src=build-baseline/src
 base_build=build-baseline/build
 
@@ -40,12 +41,14 @@ cmake --build "$base_build" -j "$(nproc)" --target viscera_bench | tail -1
 results=$(mktemp)
 trap 'rm -f "$results"' EXIT
 for ((r = 1; r <= rounds; ++r)); do
-  for which in baseline current; do
-    bin=$build/tests/viscera_bench
-    [ "$which" = baseline ] && bin=$base_build/tests/viscera_bench
-    echo "round $r/$rounds: $which" >&2
-    "$bin" --benchmark_filter="$filter" --benchmark_format=csv 2>/dev/null |
-      awk -F, -v w="$which" '$1 ~ /^"BM_/ { gsub(/"/, "", $1); print w "," $1 "," $3 "," $5 }' >> "$results"
+  for filter in $filters; do
+    for which in baseline current; do
+      bin=$build/tests/viscera_bench
+      [ "$which" = baseline ] && bin=$base_build/tests/viscera_bench
+      echo "round $r/$rounds: $which $filter" >&2
+      "$bin" --benchmark_filter="$filter" --benchmark_format=csv 2>/dev/null |
+        awk -F, -v w="$which" '$1 ~ /^"BM_/ { gsub(/"/, "", $1); print w "," $1 "," $3 "," $5 }' >> "$results"
+    done
   done
 done
 
