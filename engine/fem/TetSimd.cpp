@@ -16,9 +16,9 @@ namespace {
 // Fields per element in largeTetrahedraLanes: X (12), G (12), volume, lambda, mu, unused.
 constexpr int kLaneFields = 28;
 
-using BlocksKernel = void (*)(const double*, const double*, double, double, double*, const int*);
+using BlocksKernel = void (*)(const ElementRest*, const double*, const int*, int, int, double, double*);
 
-void blocksGeneric(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
+inline void blocksGeneric(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
   double h[12];  // h = R^T G, column-major 3 x 4
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) h[3 * k + r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
@@ -157,8 +157,8 @@ __attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const 
 //   la P_i S_j + ma P_j S_i,   la Q_i T_j + ma Q_j T_i,   (la + ma) h_i2 h_j2,
 // plus d = ma g_i . g_j on its diagonal (lanes 0 of both vectors and B22). Loads and stores never
 // overlap, so no store has to be forwarded to a wider load.
-__attribute__((target("avx2,fma"))) void blocksAvx2(const double* R, const double* G, double la, double ma, double* values,
-                                                    const int* slots) {
+__attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const double* R, const double* G, double la, double ma,
+                                                                          double* values, const int* slots) {
   double h[4][3];  // h = R^T G
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) h[k][r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
@@ -188,18 +188,36 @@ __attribute__((target("avx2,fma"))) void blocksAvx2(const double* R, const doubl
     }
 }
 
+// Elements [first, first + count): one call per run, so no call per element.
+__attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest, const double* R, const int* slots, int first,
+                                                         int count, double kFactor, double* values) {
+  for (int e = first; e < first + count; ++e) {
+    const ElementRest& r = rest[e];
+    const double a = -kFactor * r.volume;
+    blocksAvx2(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+  }
+}
 #endif
+
+void blocksRangeGeneric(const ElementRest* rest, const double* R, const int* slots, int first, int count, double kFactor,
+                        double* values) {
+  for (int e = first; e < first + count; ++e) {
+    const ElementRest& r = rest[e];
+    const double a = -kFactor * r.volume;
+    blocksGeneric(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+  }
+}
 
 // Chosen once, on first use.
 struct Kernels {
   bool avx2 = false;
-  BlocksKernel blocks = blocksGeneric;
+  BlocksKernel blocks = blocksRangeGeneric;
   ForceKernel force = largeForceGeneric;
   ForcesKernel forces = largeForcesGeneric;
   Kernels() {
 #if defined(__x86_64__)
     if ((avx2 = useAvx2())) {
-      blocks = blocksAvx2;
+      blocks = blocksRangeAvx2;
       force = largeForceAvx2;
       forces = largeForcesAvx2;
     }
@@ -214,8 +232,9 @@ const Kernels& kernels() {
 
 }  // namespace
 
-void addTetrahedronBlocks(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
-  kernels().blocks(R, G, la, ma, values, slots);
+void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
+                         int first, int count, double kFactor, double* values) {
+  kernels().blocks(rest.data(), R->data(), slots->data(), first, count, kFactor, values);
 }
 
 void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,

@@ -5,19 +5,20 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <vector>
 
 #include "engine/fem/TetKernel.h"
 
 namespace viscera::fem {
 
-// Adds one tetrahedron's stiffness to the assembled matrix: the blocks
-//   K_ij += a (lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I),   h = R^T G,
-// for all 16 node pairs (i, j), where `la` = a lambda and `ma` = a mu. R is the element frame
-// (3 x 3, column-major), G the rest shape-function gradients (3 x 4, column-major), `values` the
-// matrix's block values (column-major 3 x 3 blocks)
-// and `slots` the 16 block slots of the element, row-major (slot of (i, j) at 4 i + j).
-void addTetrahedronBlocks(const double* R, const double* G, double la, double ma, double* values, const int* slots);
+// Adds the stiffness of tetrahedra [first, first + count) to the assembled matrix: the blocks
+//   K_ij += a (lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I),   h = R^T G,  a = -kFactor V,
+// for all 16 node pairs (i, j) of each element, where R is the element's frame (R[e]) and G its
+// rest shape-function gradients. `values` holds the matrix's column-major 3 x 3 blocks and
+// slots[e] the element's 16 block slots, row-major (slot of (i, j) at 4 i + j).
+void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
+                         int first, int count, double kFactor, double* values);
 
 // The corotational ("large") element force of SOFA's edge frame (fem::frameLarge,
 // fem::elementForce) in one pass: reads the element's nodes `nodes` from positions x (3 x n,

@@ -7,6 +7,7 @@
 #include <tbb/global_control.h>
 
 #include <Eigen/Dense>
+#include <array>
 #include <random>
 #include <vector>
 
@@ -109,11 +110,10 @@ TEST(VectorKernels, StiffnessBlocksMatchTheEigenKernel) {
     BlockSparseMatrix K;
     K.setPattern(4, {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}});
     for (int s = 0; s < K.nonZeroBlocks(); ++s) K.block(s).setConstant(0.5);
-    int slots[16];
+    std::array<int, 16> slots;
     for (int i = 0; i < 4; ++i)
       for (int j = 0; j < 4; ++j) slots[4 * i + j] = K.slot(nodes[i], nodes[j]);
-    const double a = -kFactor * e.volume;
-    fem::addTetrahedronBlocks(R.data(), e.G.data(), a * e.lame.lambda, a * e.lame.mu, K.values(), slots);
+    fem::addTetrahedraBlocks({e}, &R, &slots, 0, 1, kFactor, K.values());
     const Eigen::MatrixXd dense = K.toDense();
     const double scale = Kref.cwiseAbs().maxCoeff();
     for (int i = 0; i < 4; ++i)
