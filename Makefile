@@ -33,8 +33,12 @@ demo: build
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
 
+# Every benchmark (medians of 5 repetitions), then the step benchmarks of this build and of a
+# baseline build of BASELINE (built once in build-baseline/), in turns, and their ratio.
+BASELINE ?= 805c660
 bench: build
 	$(BUILD_DIR)/tests/viscera_bench --benchmark_filter=-Accuracy --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+	bash scripts/bench-baseline.sh $(BUILD_DIR) $(BASELINE) 5
 
 # The palpation replay against a run with a ten times smaller step (long: about 15 minutes).
 bench-accuracy: build
