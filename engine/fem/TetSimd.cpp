@@ -208,18 +208,64 @@ void blocksRangeGeneric(const ElementRest* rest, const double* R, const int* slo
   }
 }
 
+// Orientation test of one or four elements: the determinant of the edges from node 0 times the
+// rest orientation; an element whose product is not positive (or not a number) is inverted.
+template <class T>
+__attribute__((always_inline)) inline void orientedVolume(const T (&p)[4][3], const T& sign, T& v) {
+  const T a[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+  const T b[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
+  const T c[3] = {p[3][0] - p[0][0], p[3][1] - p[0][1], p[3][2] - p[0][2]};
+  v = sign * (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]));
+}
+
+using InvertedKernel = void (*)(const double*, const int*, int, int, const ElementRest*, std::vector<int>&);
+
+// Elements [first, count).
+void invertedGeneric(const double* x, const int* tets, int first, int count, const ElementRest* rest, std::vector<int>& bad) {
+  for (int e = first; e < count; ++e) {
+    double p[4][3];
+    for (int k = 0; k < 4; ++k)
+      for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(tets[4 * e + k]) + r];
+    double v;
+    orientedVolume(p, rest[e].sign, v);
+    if (!(v > 0.0)) bad.push_back(e);
+  }
+}
+
+#if defined(__x86_64__)
+__attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int* tets, int first, int count,
+                                                      const ElementRest* rest, std::vector<int>& bad) {
+  int e = first;
+  for (; e + 4 <= count; e += 4) {
+    Lanes p[4][3];
+    const int* t = tets + 4 * e;
+    for (int k = 0; k < 4; ++k)
+      for (int r = 0; r < 3; ++r)
+        p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
+                        x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
+    Lanes v;
+    orientedVolume(p, Lanes{rest[e].sign, rest[e + 1].sign, rest[e + 2].sign, rest[e + 3].sign}, v);
+    for (int l = 0; l < 4; ++l)
+      if (!(v[l] > 0.0)) bad.push_back(e + l);
+  }
+  invertedGeneric(x, tets, e, count, rest, bad);
+}
+#endif
+
 // Chosen once, on first use.
 struct Kernels {
   bool avx2 = false;
   BlocksKernel blocks = blocksRangeGeneric;
   ForceKernel force = largeForceGeneric;
   ForcesKernel forces = largeForcesGeneric;
+  InvertedKernel inverted = invertedGeneric;
   Kernels() {
 #if defined(__x86_64__)
     if ((avx2 = useAvx2())) {
       blocks = blocksRangeAvx2;
       force = largeForceAvx2;
       forces = largeForcesAvx2;
+      inverted = invertedAvx2;
     }
 #endif
   }
@@ -262,6 +308,12 @@ std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest) {
 void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
                               const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f) {
   kernels().forces(x, tets, first, count, rest.data(), lanes.data(), R->data(), f);
+}
+
+std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest) {
+  std::vector<int> bad;
+  kernels().inverted(x, tets, 0, static_cast<int>(rest.size()), rest.data(), bad);
+  return bad;
 }
 
 const char* tetrahedronKernelsVersion() { return kernels().avx2 ? "avx2" : "generic"; }

@@ -36,6 +36,10 @@ std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest);
 void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
                               const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f);
 
+// The elements whose orientation at x (3 x n) differs from their rest orientation (ElementRest::
+// sign), or is degenerate: the health check after each step, four elements at a time.
+std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);
+
 // Which version the kernels run: "avx2" or "generic".: "avx2" or "generic".
 const char* tetrahedronKernelsVersion();
 

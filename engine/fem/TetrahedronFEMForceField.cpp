@@ -162,15 +162,8 @@ double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) cons
 }
 
 std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3Xd& x) const {
-  std::vector<int> bad;
-  for (int e = 0; e < tets_.cols(); ++e) {
-    const Mat34 p = gather(x, e);
-    Eigen::Matrix3d E;
-    E << p.col(1) - p.col(0), p.col(2) - p.col(0), p.col(3) - p.col(0);
-    // An element is inverted when its orientation differs from the rest orientation.
-    if (!(E.determinant() * rest_[e].sign > 0.0)) bad.push_back(e);
-  }
-  return bad;
+  // An element is inverted when its orientation differs from the rest orientation.
+  return fem::invertedTetrahedra(x.data(), tets_.data(), rest_);
 }
 
 namespace {

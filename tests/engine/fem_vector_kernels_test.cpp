@@ -94,6 +94,33 @@ TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
   }
 }
 
+// 13 elements (three groups of four and one alone), some turned inside out by moving a node
+// through node 0, one with no volume.
+TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
+  const int count = 13;
+  Eigen::Matrix3Xd x(3, 4 * count);
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
+  std::vector<fem::ElementRest> elements;
+  std::vector<int> expected;
+  for (int e = 0; e < count; ++e) {
+    const fem::Mat34 rest = randomTetrahedron() * (e % 2 ? 1.0 : -1.0);  // both rest orientations
+    elements.push_back(fem::restElement(fem::Method::Large, rest, fem::Lame::fromYoungPoisson(1e3, 0.3)));
+    fem::Mat34 now = rest;
+    if (e % 3 == 0) {
+      now.col(3) = rest.col(0) + (rest.col(0) - rest.col(3));  // node 3 through node 0: inverted
+      expected.push_back(e);
+    } else if (e == 7) {
+      now.col(3) = rest.col(0);  // node 3 on node 0: no volume
+      expected.push_back(e);
+    }
+    for (int k = 0; k < 4; ++k) {
+      tets(k, e) = 4 * e + k;
+      x.col(4 * e + k) = now.col(k);
+    }
+  }
+  EXPECT_EQ(fem::invertedTetrahedra(x.data(), tets.data(), elements), expected);
+}
+
 TEST(VectorKernels, StiffnessBlocksMatchTheEigenKernel) {
   SCOPED_TRACE(fem::tetrahedronKernelsVersion());
   for (int trial = 0; trial < 200; ++trial) {
