@@ -37,10 +37,13 @@ inline void blocksGeneric(const double* R, const double* G, double la, double ma
 // the AVX2 kernels and are used nowhere else).
 typedef double Lanes __attribute__((vector_size(32)));
 
-// out = 1 / sqrt(v), lane by lane (arguments by reference: no vector crosses a call boundary).
-inline void reciprocalRoot(const double& v, double& out) { out = 1.0 / std::sqrt(v); }
+// The factor that normalises a vector of squared length v, lane by lane: 1 / sqrt(v), or 1 for a
+// zero vector, which stays zero (as Eigen's normalized(): a collapsed element gets a zero frame
+// and finite forces, and the health check names it). Arguments by reference: no vector crosses
+// a call boundary.
+inline void reciprocalRoot(const double& v, double& out) { out = v > 0.0 ? 1.0 / std::sqrt(v) : 1.0; }
 inline void reciprocalRoot(const Lanes& v, Lanes& out) {
-  out = 1.0 / Lanes{std::sqrt(v[0]), std::sqrt(v[1]), std::sqrt(v[2]), std::sqrt(v[3])};
+  for (int l = 0; l < 4; ++l) out[l] = v[l] > 0.0 ? 1.0 / std::sqrt(v[l]) : 1.0;
 }
 
 // The element force of the corotational ("large") tetrahedron, for one element (T = double) or

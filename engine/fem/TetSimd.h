@@ -40,7 +40,7 @@ void addLargeTetrahedraForces(const double* x, const int* tets, int first, int c
 // sign), or is degenerate: the health check after each step, four elements at a time.
 std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);
 
-// Which version the kernels run: "avx2" or "generic".: "avx2" or "generic".
+// Which version the kernels run: "avx2" or "generic".
 const char* tetrahedronKernelsVersion();
 
 }  // namespace viscera::fem

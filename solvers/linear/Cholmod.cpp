@@ -72,15 +72,17 @@ SymbolicCache& symbolicCache() {
 // factorisation; their thread wake-ups and barriers made the gel phantom's factorisation three
 // times slower (57.6 -> 18.0 ms a step, wall; CPU time fell too) and left the core idle while
 // waiting. Parallel work here comes from TBB and from simulations run side by side, so CHOLMOD
-// runs serially: OpenMP's max-active-levels set to 0 makes every region run on its calling thread.
-// Looked up at run time: a CHOLMOD built without OpenMP needs nothing, and nothing else in the
-// program uses OpenMP.
+// runs serially: OpenMP's max-active-levels set to 0 makes every region run on its calling
+// thread. libgomp keeps that setting per thread, so each thread that factorises or solves sets
+// it once. Looked up at run time: a CHOLMOD built without OpenMP needs nothing, and nothing else
+// in the program uses OpenMP.
 void serialOpenMp() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    using SetLevels = void (*)(int);
-    if (auto set = reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) set(0);
-  });
+  thread_local bool done = false;
+  if (done) return;
+  done = true;
+  using SetLevels = void (*)(int);
+  static const auto set = reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
+  if (set) set(0);
 }
 
 }  // namespace
@@ -158,11 +160,12 @@ struct CholmodSolver::Impl {
   }
 };
 
-CholmodSolver::CholmodSolver() : impl_(new Impl()) { serialOpenMp(); }
+CholmodSolver::CholmodSolver() : impl_(new Impl()) {}
 void CholmodSolver::clearSharedAnalyses() { symbolicCache().clear(); }
 CholmodSolver::~CholmodSolver() { delete impl_; }
 
 bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) {
+  serialOpenMp();
   Impl& d = *impl_;
   if (!d.A || d.rowStart != M.rowStart() || d.cols != M.cols()) {
     d.buildPattern(M);
@@ -198,6 +201,7 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
 }
 
 void CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  serialOpenMp();
   Impl& d = *impl_;
   cholmod_dense* B = cholmod_allocate_dense(b.size(), 1, b.size(), CHOLMOD_REAL, &d.common);
   std::copy(b.data(), b.data() + b.size(), static_cast<double*>(B->x));

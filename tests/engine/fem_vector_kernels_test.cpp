@@ -8,7 +8,9 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <cstdlib>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "builtin/Builtins.h"
@@ -62,7 +64,7 @@ TEST(VectorKernels, LargeForceMatchesTheEigenKernel) {
 }
 
 // Elements 0..10 of a chain sharing nodes (e uses nodes e .. e + 3): two groups of four run in the
-// lanes, the rest one by one; started at element 1, no group is aligned.
+// lanes, the rest one by one; started at element 1, elements 1..3 and 8..10 run one by one.
 TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
   const int count = 11, nodes = count + 3;
   Eigen::Matrix3Xd rest(3, nodes);
@@ -121,6 +123,34 @@ TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
   EXPECT_EQ(fem::invertedTetrahedra(x.data(), tets.data(), elements), expected);
 }
 
+// On a CPU with AVX2 and FMA the vector versions run, unless the environment asks otherwise.
+TEST(VectorKernels, TheVectorVersionsRunWhereTheCpuHasThem) {
+  const char* forced = std::getenv("VISCERA_SIMD");
+  __builtin_cpu_init();
+  const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  EXPECT_STREQ(fem::tetrahedronKernelsVersion(), cpu && !(forced && std::string(forced) == "generic") ? "avx2" : "generic");
+}
+
+// A collapsed element (all nodes on one point) gets a zero frame and finite forces, as in the
+// Eigen kernel, so that the health check can name it.
+TEST(VectorKernels, ACollapsedElementHasFiniteForces) {
+  const fem::ElementRest e = fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(1e3, 0.3));
+  const std::vector<fem::ElementRest> rest(8, e);
+  const std::vector<double> lanes = fem::largeTetrahedraLanes(rest);
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, 8);
+  for (int k = 0; k < 8; ++k) tets.col(k) << 0, 1, 2, 3;
+  const Eigen::Matrix3Xd x = Eigen::Matrix3Xd::Ones(3, 4);
+  Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 4);
+  std::vector<Eigen::Matrix3d> R(8);
+  fem::addLargeTetrahedraForces(x.data(), tets.data(), 0, 8, rest, lanes, R.data(), f.data());  // lanes and one by one
+  Eigen::Matrix3d Rref;
+  fem::Mat34 xe = fem::Mat34::Ones();
+  const fem::Mat34 fref = fem::elementForce(fem::Method::Large, e, xe, Rref);
+  EXPECT_TRUE(f.allFinite());
+  EXPECT_LE((f - 8.0 * fref).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, fref.cwiseAbs().maxCoeff()));
+  for (const auto& r : R) EXPECT_EQ(r, Rref);
+}
+
 TEST(VectorKernels, StiffnessBlocksMatchTheEigenKernel) {
   SCOPED_TRACE(fem::tetrahedronKernelsVersion());
   for (int trial = 0; trial < 200; ++trial) {
@@ -149,6 +179,36 @@ TEST(VectorKernels, StiffnessBlocksMatchTheEigenKernel) {
         EXPECT_LE((got - Kref.block<3, 3>(3 * i, 3 * j)).cwiseAbs().maxCoeff(), 1e-12 * scale) << trial << " " << i << j;
       }
   }
+}
+
+// Elements 2..6 of a chain (element e on nodes e .. e + 3) added in one call: each element's frame,
+// rest data and slots are found by its index.
+TEST(VectorKernels, StiffnessBlocksOfARangeMatchTheEigenKernel) {
+  const int count = 7, nodes = count + 3;
+  std::vector<fem::ElementRest> elements;
+  std::vector<Eigen::Matrix3d> R;
+  std::vector<std::pair<int, int>> pairs;
+  for (int e = 0; e < count; ++e) {
+    elements.push_back(fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(uniform(1e3, 1e5), 0.35)));
+    R.push_back(Eigen::AngleAxisd(uniform(-3, 3), Eigen::Vector3d::Random().normalized()).toRotationMatrix());
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) pairs.push_back({e + i, e + j});
+  }
+  BlockSparseMatrix K;
+  K.setPattern(nodes, pairs);
+  std::vector<std::array<int, 16>> slots(count);
+  for (int e = 0; e < count; ++e)
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) slots[e][4 * i + j] = K.slot(e + i, e + j);
+  const double kFactor = 0.7;
+  fem::addTetrahedraBlocks(elements, R.data(), slots.data(), 2, 5, kFactor, K.values());
+  Eigen::MatrixXd ref = Eigen::MatrixXd::Zero(3 * nodes, 3 * nodes);
+  for (int e = 2; e < 7; ++e) {
+    const fem::Mat12 Ke = kFactor * fem::elementStiffness(fem::Method::Large, elements[e], R[e]);
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) ref.block<3, 3>(3 * (e + i), 3 * (e + j)) += Ke.block<3, 3>(3 * i, 3 * j);
+  }
+  EXPECT_LE((K.toDense() - ref).cwiseAbs().maxCoeff(), 1e-12 * ref.cwiseAbs().maxCoeff());
 }
 
 TEST(VectorKernels, BlockProductMatchesTheDenseProduct) {
