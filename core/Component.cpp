@@ -1,9 +1,11 @@
 #include "core/Component.h"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "core/Scene.h"
+#include "core/Text.h"
 
 namespace viscera {
 
@@ -36,6 +38,9 @@ std::vector<int> Component::linkedInts(const std::string& attr) {
   std::vector<int> r;
   for (double d : linkedReals(attr)) {
     if (d != std::floor(d)) throw error(attr, "linked value is not an integer");
+    // Checked before the conversion, which is undefined outside int's range.
+    if (!(d >= std::numeric_limits<int>::min() && d <= std::numeric_limits<int>::max()))
+      throw error(attr, "linked value " + formatNumber(d) + " is out of range for an integer");
     r.push_back(static_cast<int>(d));
   }
   return r;

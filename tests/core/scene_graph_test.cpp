@@ -139,6 +139,27 @@ TEST(SceneGraph, LinkedFieldsCarryTheValues) {
   EXPECT_EQ(fieldOf(named(s->root(), "viaState"), "indices"), bottom);
 }
 
+// Indices linked from a field of reals (a grid's positions): a value beyond int's range is an
+// error naming the attribute (the conversion was undefined; found by the scene fuzzer's replay
+// under UBSan).
+TEST(SceneGraph, LinkedIndicesOutOfRangeAreErrors) {
+  for (const char* value : {"1e308", "3e9", "2147483648"}) {  // negative ones fail the range check first
+    std::string text = kLinks;
+    const std::string old = "indices=\"@../bottom.indices\"";
+    text.replace(text.find(old), old.size(), "indices=\"@/root/data/far.position\"");
+    text.replace(text.rfind("</Node>"), 7, std::string("  <Node name=\"data\"><RegularGridTopology name=\"far\" n=\"2 1 1\" min=\"0 0 0\" max=\"") +
+                                             value + " 0 0\"/></Node>\n</Node>");
+    try {
+      build(text)->init();
+      ADD_FAILURE() << value << ": no error";
+    } catch (const Error& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("FixedConstraint.indices"), std::string::npos) << m;
+      EXPECT_NE(m.find("out of range for an integer"), std::string::npos) << m;
+    }
+  }
+}
+
 TEST(SceneGraph, BrokenLinksAreErrorsWithLocation) {
   auto err = [](const std::string& link, const std::string& attr = "indices") -> std::string {
     std::string text = kLinks;
