@@ -223,9 +223,9 @@ __attribute__((always_inline)) inline void orientedVolume(const T (&p)[4][3], co
 
 using InvertedKernel = void (*)(const double*, const int*, int, int, const ElementRest*, std::vector<int>&);
 
-// Elements [first, count).
-void invertedGeneric(const double* x, const int* tets, int first, int count, const ElementRest* rest, std::vector<int>& bad) {
-  for (int e = first; e < count; ++e) {
+// Elements [first, end).
+void invertedGeneric(const double* x, const int* tets, int first, int end, const ElementRest* rest, std::vector<int>& bad) {
+  for (int e = first; e < end; ++e) {
     double p[4][3];
     for (int k = 0; k < 4; ++k)
       for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(tets[4 * e + k]) + r];
@@ -236,10 +236,10 @@ void invertedGeneric(const double* x, const int* tets, int first, int count, con
 }
 
 #if defined(__x86_64__)
-__attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int* tets, int first, int count,
+__attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int* tets, int first, int end,
                                                       const ElementRest* rest, std::vector<int>& bad) {
   int e = first;
-  for (; e + 4 <= count; e += 4) {
+  for (; e + 4 <= end; e += 4) {
     Lanes p[4][3];
     const int* t = tets + 4 * e;
     for (int k = 0; k < 4; ++k)
@@ -251,7 +251,7 @@ __attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int
     for (int l = 0; l < 4; ++l)
       if (!(v[l] > 0.0)) bad.push_back(e + l);
   }
-  invertedGeneric(x, tets, e, count, rest, bad);
+  invertedGeneric(x, tets, e, end, rest, bad);
 }
 #endif
 
