@@ -43,7 +43,9 @@ typedef double Lanes __attribute__((vector_size(32)));
 // a call boundary.
 inline void reciprocalRoot(const double& v, double& out) { out = v > 0.0 ? 1.0 / std::sqrt(v) : 1.0; }
 inline void reciprocalRoot(const Lanes& v, Lanes& out) {
-  for (int l = 0; l < 4; ++l) out[l] = v[l] > 0.0 ? 1.0 / std::sqrt(v[l]) : 1.0;
+  Lanes root;
+  for (int l = 0; l < 4; ++l) root[l] = v[l] > 0.0 ? std::sqrt(v[l]) : 1.0;
+  out = 1.0 / root;  // one vector division
 }
 
 // The element force of the corotational ("large") tetrahedron, for one element (T = double) or
