@@ -33,23 +33,6 @@ void forEachColoredRun(const ElementColoring& coloring, Fn&& fn);
 #include <tbb/parallel_for.h>
 
 template <class Fn>
-void viscera::forEachColored(const ElementColoring& coloring, Fn&& fn) {
-  const size_t run = coloring.run;
-  for (const auto& c : coloring.colors) {
-    if (c.size() < 256) {
-      for (int e : c) fn(e);
-      continue;
-    }
-    // Every run of a color is whole (`run` elements) except perhaps its last.
-    const size_t runs = (c.size() + run - 1) / run;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, (128 + run - 1) / run), [&](const tbb::blocked_range<size_t>& r) {
-      const size_t end = std::min(c.size(), r.end() * run);
-      for (size_t k = r.begin() * run; k < end; ++k) fn(c[k]);
-    });
-  }
-}
-
-template <class Fn>
 void viscera::forEachColoredRun(const ElementColoring& coloring, Fn&& fn) {
   const size_t run = coloring.run;
   for (const auto& c : coloring.colors) {
@@ -63,4 +46,11 @@ void viscera::forEachColoredRun(const ElementColoring& coloring, Fn&& fn) {
       for (size_t k = r.begin(); k < r.end(); ++k) body(k);
     });
   }
+}
+
+template <class Fn>
+void viscera::forEachColored(const ElementColoring& coloring, Fn&& fn) {
+  forEachColoredRun(coloring, [&](int first, int count) {
+    for (int e = first; e < first + count; ++e) fn(e);
+  });
 }

@@ -104,13 +104,7 @@ __attribute__((always_inline)) inline void largeForceOne(const double* x, const 
     for (int r = 0; r < 3; ++r) f[3 * static_cast<long>(nodes[k]) + r] += fl[k][r];
 }
 
-using ForceKernel = void (*)(const double*, const int*, const double*, const double*, double, double, double, double*, double*);
 using ForcesKernel = void (*)(const double*, const int*, int, int, const ElementRest*, const double*, double*, double*);
-
-void largeForceGeneric(const double* x, const int* nodes, const double* X, const double* G, double volume, double lambda,
-                       double mu, double* R, double* f) {
-  largeForceOne(x, nodes, X, G, volume, lambda, mu, R, f);
-}
 
 void largeForcesGeneric(const double* x, const int* tets, int first, int count, const ElementRest* rest, const double*,
                         double* R, double* f) {
@@ -121,11 +115,6 @@ void largeForcesGeneric(const double* x, const int* tets, int first, int count, 
 }
 
 #if defined(__x86_64__)
-__attribute__((target("avx2,fma"))) void largeForceAvx2(const double* x, const int* nodes, const double* X, const double* G,
-                                                        double volume, double lambda, double mu, double* R, double* f) {
-  largeForceOne(x, nodes, X, G, volume, lambda, mu, R, f);
-}
-
 // Groups of four elements starting at a multiple of four run in the lanes; the rest one by one.
 __attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const int* tets, int first, int count,
                                                          const ElementRest* rest, const double* lanes, double* R, double* f) {
@@ -261,14 +250,12 @@ __attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int
 struct Kernels {
   bool avx2 = false;
   BlocksKernel blocks = blocksRangeGeneric;
-  ForceKernel force = largeForceGeneric;
   ForcesKernel forces = largeForcesGeneric;
   InvertedKernel inverted = invertedGeneric;
   Kernels() {
 #if defined(__x86_64__)
     if ((avx2 = useAvx2())) {
       blocks = blocksRangeAvx2;
-      force = largeForceAvx2;
       forces = largeForcesAvx2;
       inverted = invertedAvx2;
     }
@@ -286,11 +273,6 @@ const Kernels& kernels() {
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
                          int first, int count, double kFactor, double* values) {
   kernels().blocks(rest.data(), R->data(), slots->data(), first, count, kFactor, values);
-}
-
-void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
-                              double lambda, double mu, double* R, double* f) {
-  kernels().force(x, nodes, X, G, volume, lambda, mu, R, f);
 }
 
 std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest) {

@@ -20,19 +20,13 @@ namespace viscera::fem {
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
                          int first, int count, double kFactor, double* values);
 
-// The corotational ("large") element force of SOFA's edge frame (fem::frameLarge,
-// fem::elementForce) in one pass: reads the element's nodes `nodes` from positions x (3 x n,
-// column-major), writes its frame to R (column-major) and adds its nodal forces to f (3 x n).
-// X and G are the rest positions in the element frame and the shape-function gradients (3 x 4,
-// column-major).
-void addLargeTetrahedronForce(const double* x, const int* nodes, const double* X, const double* G, double volume,
-                              double lambda, double mu, double* R, double* f);
-
 // The rest data of consecutive elements in groups of four, one element per lane (structure of
 // arrays), for addLargeTetrahedraForces: part of the model, built once.
 std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest);
-// addLargeTetrahedronForce for elements [first, first + count) (tets: 4 nodes per element;
-// R: one frame per element), four at a time in the vector version.
+// The corotational ("large") element force of SOFA's edge frame (fem::frameLarge,
+// fem::elementForce) of elements [first, first + count) in one pass, four at a time in the vector
+// version: reads each element's nodes (tets: 4 per element) from positions x (3 x n,
+// column-major), writes its frame to R[e] and adds its nodal forces to f (3 x n).
 void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
                               const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f);
 

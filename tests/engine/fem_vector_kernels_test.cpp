@@ -54,7 +54,7 @@ TEST(VectorKernels, LargeForceMatchesTheEigenKernel) {
     Eigen::Matrix3Xd X = Eigen::Matrix3Xd::Zero(3, 5), f = Eigen::Matrix3Xd::Ones(3, 5);
     for (int k = 0; k < 4; ++k) X.col(nodes[k]) = x.col(k);
     Eigen::Matrix3d R;
-    fem::addLargeTetrahedronForce(X.data(), nodes, e.X.data(), e.G.data(), e.volume, e.lame.lambda, e.lame.mu, R.data(), f.data());
+    fem::addLargeTetrahedraForces(X.data(), nodes, 0, 1, {e}, fem::largeTetrahedraLanes({e}), &R, f.data());
     EXPECT_LT((R - Rref).cwiseAbs().maxCoeff(), 1e-12);
     const double scale = fref.cwiseAbs().maxCoeff();
     for (int k = 0; k < 4; ++k)
