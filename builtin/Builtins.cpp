@@ -23,6 +23,7 @@ void registerConstraintContact(Registry&);
 void registerMappings(Registry&);
 void registerObservation(Registry&);
 void registerRobotDrivers(Registry&);
+void registerLearnedComponents(Registry&);
 
 void registerBuiltins(Registry& r) {
   registerMechanicalObject(r);
@@ -45,6 +46,7 @@ void registerBuiltins(Registry& r) {
   registerMappings(r);
   registerObservation(r);
   registerRobotDrivers(r);
+  registerLearnedComponents(r);
 
   const char* drawing = "drawing only";
   for (const char* t : {"VisualStyle", "OglSceneFrame", "LightManager", "DirectionalLight",

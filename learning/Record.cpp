@@ -25,7 +25,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
-#include "learning/Rollout.h"
+#include "learning/data/Rollout.h"
 #include "motion/Trajectory.h"
 #include "observation/Tissue.h"
 #include "study/Replay.h"
@@ -134,6 +134,7 @@ void checkOptions(const RecordOptions& o) {
   if (!(o.speedMin > 0) || !(o.speedMax >= o.speedMin) || !std::isfinite(o.speedMax))
     fail("--speed: needs 0 < MIN <= MAX, got " + formatNumber(o.speedMin) + ":" + formatNumber(o.speedMax));
   if (o.faces.empty()) fail("--faces: name at least one face (top, x-, x+, y-, y+)");
+  if (o.sceneTrajectory && o.rollouts != 1) fail("--scene-trajectory: records one rollout (--rollouts 1)");
   if (o.jobs < 0) fail("--jobs: must be >= 0 (0: one per core)");
   if (fs::exists(o.out)) throw Error(SourceLoc{o.out}, "--out: already exists; rollouts are written to a new folder (nothing was changed)");
   const fs::path parent = fs::absolute(o.out).parent_path();
@@ -174,6 +175,14 @@ RecordResult record(const RecordOptions& o, const std::function<void(const std::
   }
 }
 
+RestMesh sceneRestMesh(const std::string& scene, const std::vector<std::string>& sets) {
+  SceneDesc desc = io::readScene(scene);
+  for (const auto& a : sets) desc.applySetting(a);
+  study::removeOutputs(desc.root, true);
+  auto model = buildScene(desc);
+  return inspect(*model, scene).mesh;
+}
+
 namespace {
 
 RecordResult recordInto(const RecordOptions& o, const SceneDesc& desc, const SceneParts& parts, const fs::path& temp,
@@ -188,6 +197,11 @@ RecordResult recordInto(const RecordOptions& o, const SceneDesc& desc, const Sce
     p.index = k;
     p.seed = o.seed + static_cast<std::uint64_t>(k);
     p.name = rolloutName(k);
+    if (o.sceneTrajectory) {
+      variants[k] = desc;
+      study::removeOutputs(variants[k].root, true);
+      continue;
+    }
     std::mt19937_64 rng(p.seed);
     p.depth = std::uniform_real_distribution<double>(o.depthMin, o.depthMax)(rng);
     p.speed = std::uniform_real_distribution<double>(o.speedMin, o.speedMax)(rng);
@@ -249,9 +263,13 @@ RecordResult recordInto(const RecordOptions& o, const SceneDesc& desc, const Sce
           std::lock_guard<std::mutex> lock(progressMutex);
           std::ostringstream line;
           line.precision(3);
-          line << plans[k].name << " (" << ++done << "/" << o.rollouts << "): " << out.frames << " frames, "
-               << plans[k].pokes << (plans[k].pokes == 1 ? " poke" : " pokes") << ", depth " << plans[k].depth
-               << ", speed " << plans[k].speed << ", " << formatDuration(out.wallSeconds)
+          line << plans[k].name << " (" << ++done << "/" << o.rollouts << "): " << out.frames << " frames, ";
+          if (o.sceneTrajectory)
+            line << "the scene's trajectory";
+          else
+            line << plans[k].pokes << (plans[k].pokes == 1 ? " poke" : " pokes") << ", depth " << plans[k].depth
+                 << ", speed " << plans[k].speed;
+          line << ", " << formatDuration(out.wallSeconds)
                << (r.failure ? ", DIVERGED: " + r.failure->str() : std::string());
           progress(line.str());
         }
@@ -292,6 +310,14 @@ RecordResult recordInto(const RecordOptions& o, const SceneDesc& desc, const Sce
   for (int k = 0; k < o.rollouts; ++k) {
     const RolloutPlan& p = plans[k];
     const RolloutOutcome& out = outcomes[k];
+    if (o.sceneTrajectory) {
+      list.push_back({{"file", p.name + ".bin"}, {"trajectory", "the scene's own"}, {"frames", out.frames},
+                      {"status", out.status == "ok" ? "ok" : "diverged"}});
+      if (out.status != "ok") list.back()["failure"] = out.status;
+      result.frames += out.frames;
+      result.diverged += out.status != "ok";
+      continue;
+    }
     list.push_back({{"file", p.name + ".bin"},
                     {"trajectory", "trajectories/" + p.name + ".csv"},
                     {"seed", p.seed},

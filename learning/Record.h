@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "learning/data/Rollout.h"
 #include "motion/Palpation.h"
 
 namespace viscera::learning {
@@ -25,6 +26,8 @@ struct RecordOptions {
   std::vector<motion::Face> faces = {motion::Face::Top, motion::Face::XMin, motion::Face::XMax, motion::Face::YMin,
                                      motion::Face::YMax};
   std::uint64_t seed = 1;             // rollout k draws from seed + k
+  bool sceneTrajectory = false;       // one rollout along the scene's own trajectory (a held-out
+                                      // palpation) instead of generated ones
   int jobs = 0;                       // rollouts run at once (0: one per core)
 };
 
@@ -38,5 +41,9 @@ struct RecordResult {
 // `progress` is told about each finished rollout. Input errors throw viscera::Error; a rollout that
 // diverges keeps its frames up to the divergence and is marked in the index.
 RecordResult record(const RecordOptions& options, const std::function<void(const std::string&)>& progress = {});
+
+// The rest mesh (nodes, tetrahedra, fixed nodes) of a scene's one deformable body, as a recording
+// of it would hold; `sets` are ADDRESS=VALUE edits. Throws Error naming the scene.
+RestMesh sceneRestMesh(const std::string& scene, const std::vector<std::string>& sets = {});
 
 }  // namespace viscera::learning

@@ -7,6 +7,7 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config
   libeigen3-dev libsuitesparse-dev libopenblas0-serial libpugixml-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libnlopt-cxx-dev libboost-dev libopenmpi-dev openmpi-bin
   libgtest-dev libgmock-dev libbenchmark-dev
+  libtorch-dev
   libpcl-dev libopenmesh-dev tetgen
   gnuplot-nox
 )

@@ -2,14 +2,22 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/Error.h"
 #include "core/Text.h"
 #include "engine/Run.h"
+#include "apps/viscera/Gnuplot.h"
+#include "core/Files.h"
 #include "learning/Record.h"
+#include "learning/nn/Stepper.h"
 
 namespace viscera {
 
@@ -55,10 +63,161 @@ int recordRollouts(LearnRecordCli& c) {
   return kExitOk;
 }
 
+struct LearnTrainCli {
+  learning::StepperTrainOptions options;
+  bool quiet = false;
+};
+
+// The command as typed, for the model's record (flags and values in the order CLI11 parsed them).
+std::string trainCommand(const CLI::App& train) {
+  std::string s = "viscera learn train";
+  for (const std::string& d : train.get_option("data")->results()) s += " " + d;
+  for (const CLI::Option* o : train.get_options()) {
+    if (o->get_name() == "data" || o->get_name() == "--help" || o->count() == 0) continue;
+    s += " " + o->get_name();
+    if (o->get_expected_min() > 0)
+      for (const std::string& v : o->results()) s += " " + v;
+  }
+  return s;
+}
+
+int trainModel(LearnTrainCli& c) {
+  learning::trainStepper(c.options, [&](const learning::EpochReport& r) {
+    if (c.quiet) return;
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "epoch %d/%d: loss %.3g (held-out %.3g) cells^2, held-out rollout %.3f mm (no motion %.3f mm), "
+                  "rate %.2g, %s%s",
+                  r.epoch, r.epochs, r.trainLoss, r.validationLoss, r.rolloutError, r.baselineError, r.learningRate,
+                  formatDuration(r.seconds).c_str(), r.best ? "  [saved]" : "");
+    std::cerr << line << std::endl;
+  });
+  if (!c.quiet) std::cerr << "model: " << c.options.out << " (checkpoint to resume from: " << c.options.out << "/checkpoint)\n";
+  return kExitOk;
+}
+
+struct LearnEvalCli {
+  std::string model, data, out;
+  double segment = 10, time = 0;
+  bool noPlot = false;
+};
+
+int evaluateModel(const LearnEvalCli& c) {
+  namespace fs = std::filesystem;
+  const learning::Stepper model = learning::Stepper::load(c.model);
+  const learning::RolloutSet data = learning::readRolloutSet(c.data);
+  if (fs::exists(c.out) && !fs::is_directory(c.out)) throw Error(SourceLoc{c.out}, "--out: exists and is not a folder");
+  const auto evals = learning::evaluateStepper(model, data, c.segment, c.time);
+  if (evals.empty()) throw Error(SourceLoc{c.data}, "the recording has no usable rollout");
+  fs::create_directories(c.out);
+  FolderLock lock(c.out);
+  nlohmann::ordered_json report;
+  report["model"] = fs::absolute(c.model).string();
+  report["data"] = fs::absolute(c.data).string();
+  report["units"] = model.units();
+  report["segment"] = c.segment;
+  std::ostringstream csv, table;
+  csv << "rollout,t,model,no_motion\n";
+  table << "rollout            segment       model - FEM, mean (sd)   no motion - FEM   ratio\n";
+  double all = 0, allBase = 0, frames = 0, seconds = 0, worst = 0, worstRatio = 1e300;
+  auto& list = report["rollouts"] = nlohmann::ordered_json::array();
+  for (size_t r = 0; r < evals.size(); ++r) {
+    const auto& e = evals[r];
+    const std::string name = fs::path(e.file).stem().string();
+    nlohmann::ordered_json j = {{"file", e.file}, {"mean", e.mean}, {"noMotionMean", e.baselineMean}};
+    auto& segs = j["segments"] = nlohmann::ordered_json::array();
+    for (const auto& s : e.segments) {
+      char line[200];
+      std::snprintf(line, sizeof line, "%-18s %5.0f-%-5.0f   %8.3f (%.3f) %-10s %8.3f %-8s %6.1f\n", name.c_str(), s.t0, s.t1,
+                    s.mean, s.stddev, model.units().substr(0, model.units().find(' ')).c_str(), s.baselineMean, "",
+                    s.mean > 0 ? s.baselineMean / s.mean : 0.0);
+      table << line;
+      segs.push_back({{"t0", s.t0}, {"t1", s.t1}, {"frames", s.frames}, {"mean", s.mean}, {"sd", s.stddev}, {"noMotionMean", s.baselineMean}});
+      worst = std::max(worst, s.mean);
+      if (s.mean > 0) worstRatio = std::min(worstRatio, s.baselineMean / s.mean);
+    }
+    for (size_t f = 0; f < e.time.size(); ++f) csv << name << "," << e.time[f] << "," << e.error[f] << "," << e.baseline[f] << "\n";
+    const double n = static_cast<double>(e.time.size() - 1);
+    all += e.mean * n, allBase += e.baselineMean * n, frames += n, seconds += e.seconds;
+    list.push_back(j);
+  }
+  report["mean"] = all / frames;
+  report["noMotionMean"] = allBase / frames;
+  report["worstSegmentMean"] = worst;
+  report["smallestSegmentRatio"] = worstRatio;
+  report["msPerFrame"] = 1e3 * seconds / frames;
+  std::cout << table.str();
+  char line[240];
+  std::snprintf(line, sizeof line, "all: model - FEM %.3f, no motion - FEM %.3f (ratio %.1f); worst segment %.3f, smallest segment ratio %.1f; %.2f ms per frame\n",
+                all / frames, allBase / frames, allBase / std::max(1e-300, all), worst, worstRatio, 1e3 * seconds / frames);
+  std::cout << line;
+  const fs::path dir(c.out);
+  writeFileAtomic((dir / "errors.csv").string(), csv.str());
+  writeFileAtomic((dir / "eval.json").string(), report.dump(2) + "\n");
+  if (!c.noPlot) {
+    std::ostringstream gp;
+    gp << "set datafile separator ','\nset terminal pngcairo size 1100,420 noenhanced\nset output outfile\n"
+       << "set xlabel 'time in the rollout'\nset ylabel 'mean node distance to the FEM (" << model.units().substr(0, model.units().find(' ')) << ")'\n"
+       << "set key top left\nset grid\nplot ";
+    for (size_t r = 0; r < evals.size(); ++r) {
+      const std::string name = fs::path(evals[r].file).stem().string();
+      gp << (r ? ", " : "") << "'errors.csv' using (strcol(1) eq '" << name << "' ? $2 : 1/0):3 with lines lw 2 title '" << name << " model', "
+         << "'' using (strcol(1) eq '" << name << "' ? $2 : 1/0):4 with lines dt 2 title '" << name << " no motion'";
+    }
+    gp << "\n";
+    writeFileAtomic((dir / "eval.gp").string(), gp.str());
+    plotWithGnuplot(dir, "eval.gp", "eval.png");
+  }
+  std::cerr << "wrote " << (dir / "eval.json").string() << ", errors.csv" << (c.noPlot ? "" : ", eval.png") << "\n";
+  return kExitOk;
+}
+
+struct LearnBenchCli {
+  std::vector<std::string> scenes;
+  std::vector<int> widths = {128, 256};
+  int frames = 60, threads = 1;
+};
+
+int benchModels(const LearnBenchCli& c) {
+  learning::setTorchThreads(c.threads);
+  const learning::GemmSpeed g = learning::measureGemm(2025, 256, 256);
+  std::printf("threads: %d\nBLAS: %s\nsgemm 2025x256 by 256x256: %.3f ms, %.1f GFLOP/s\n", c.threads, g.blas.c_str(),
+              g.milliseconds, g.gflops);
+  for (const std::string& scene : c.scenes) {
+    const learning::RestMesh mesh = learning::sceneRestMesh(scene);
+    learning::StepperNormalisers norm;
+    norm.cell = Eigen::Vector3d::Ones();
+    norm.boxMin = mesh.points.rowwise().minCoeff();
+    norm.boxMax = mesh.points.rowwise().maxCoeff();
+    norm.reach = 10;
+    for (int width : c.widths) {
+      learning::StepperArchitecture arch;
+      arch.width = width;
+      const learning::Stepper model(mesh, arch, norm, 1.0 / 30, "mm g s", 1);
+      // The instrument pressing the top's centre, as in contact.
+      const Eigen::Vector3d tip(0.5 * (norm.boxMin.x() + norm.boxMax.x()), 0.5 * (norm.boxMin.y() + norm.boxMax.y()), norm.boxMax.z() + 2);
+      Eigen::Matrix3Xd x = mesh.points;
+      for (int i = 0; i < 5; ++i) x = model.step(mesh.points, {tip, Eigen::Vector3d(0, 0, -5)});
+      std::vector<double> ms;
+      for (int f = 0; f < c.frames; ++f) {
+        const auto t0 = std::chrono::steady_clock::now();
+        x = model.step(mesh.points, {tip, Eigen::Vector3d(0, 0, -5)});
+        ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      }
+      std::nth_element(ms.begin(), ms.begin() + ms.size() / 2, ms.end());
+      const double med = ms[ms.size() / 2];
+      std::printf("stepper %s (%d nodes), width %d (%lld parameters): %.3f ms per frame (median of %d), %.1f x real time at 30 Hz\n",
+                  std::filesystem::path(scene).filename().c_str(), static_cast<int>(mesh.points.cols()), width,
+                  static_cast<long long>(model.parameters()), med, c.frames, (1000.0 / 30) / med);
+    }
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 void addLearnCommand(CLI::App& app, std::function<int()>& action) {
-  auto* cmd = app.add_subcommand("learn", "learned components: record rollouts for a learned stepper");
+  auto* cmd = app.add_subcommand("learn", "learned components: record rollouts, train, evaluate and time learned steppers");
   cmd->require_subcommand(1);
   auto c = std::make_shared<LearnRecordCli>();
   auto* rec = cmd->add_subcommand("record", "run randomised palpations of a scene in parallel and write their rollouts");
@@ -77,9 +236,65 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   rec->add_option("--faces", c->faces, "faces to poke, comma-separated: top, x-, x+, y-, y+ (all)");
   rec->add_option("--seed", c->options.seed, "rollout k draws from seed + k (1)");
   rec->add_option("--jobs", c->options.jobs, "rollouts run at once (0: one per core)");
+  rec->add_flag("--scene-trajectory", c->options.sceneTrajectory,
+                "one rollout along the scene's own trajectory (a held-out palpation; with --rollouts 1)");
   rec->add_option("--set", c->options.sets, "set a scene attribute, ADDRESS=VALUE; repeatable");
   rec->add_flag("--quiet", c->quiet, "no progress or summary");
   rec->callback([c, &action] { action = [c] { return recordRollouts(*c); }; });
+
+  auto t = std::make_shared<LearnTrainCli>();
+  auto* train = cmd->add_subcommand("train", "train a learned stepper (graph U-Net) on recorded rollouts");
+  train->footer("Trains on the rollouts of the recording folders (one mesh, one frame rate), holding the last --validation\n"
+                "share of them out: after every epoch the model is rolled out over them for --validation-time and, when\n"
+                "its mean node error improved, written to --out (config.json, weights.pt, mesh.bin). --out/checkpoint holds\n"
+                "the last epoch and the optimiser's state; --resume continues from it. See docs/user-guide.md, \"Learned stepper\".");
+  train->add_option("data", t->options.data, "recording folders (viscera learn record)")->required();
+  train->add_option("--out", t->options.out, "the model folder to create")->required();
+  train->add_option("--width", t->options.architecture.width, "features of every hidden layer (256)");
+  train->add_option("--levels", t->options.architecture.levels, "pooling levels of the U-Net (3)");
+  train->add_option("--matchings", t->options.architecture.matchings, "node-pair matchings per pooling level (2)");
+  train->add_option("--max-step", t->options.architecture.maxStep, "largest update per frame, in cells along each axis (1)");
+  train->add_flag("!--no-rest-anchor", t->options.architecture.restAnchored,
+                  "do not subtract the network's output at rest (for a body whose rest shape is not its equilibrium)");
+  train->add_option("--epochs", t->options.epochs, "epochs (30)");
+  train->add_option("--batch", t->options.batch, "frames per batch (32)");
+  train->add_option("--lr", t->options.learningRate, "Adam's initial learning rate (1e-3)");
+  train->add_option("--warmup", t->options.warmup, "epochs before half the inputs become the model's own predictions (5)");
+  train->add_option("--unroll", t->options.unroll, "those predictions chain 1 to this many frames (3)");
+  train->add_option("--noise", t->options.noise, "RMS of the smooth random displacement added to the inputs, in cells (0.03)");
+  train->add_option("--validation", t->options.validation, "share of the rollouts held out (0.1, at least one)");
+  train->add_option("--validation-time", t->options.validationTime, "time each held-out rollout is rolled out over (20)");
+  train->add_option("--patience", t->options.patience, "epochs without a better held-out rollout before the rate halves (3)");
+  train->add_option("--reach", t->options.reachCells, "the instrument is seen within its radius plus this many cells (1)");
+  train->add_option("--seed", t->options.seed, "seed of the weights and the batches (1)");
+  train->add_option("--threads", t->options.threads, "LibTorch threads (0: every core)");
+  train->add_flag("--resume", t->options.resume, "continue the training in --out from its checkpoint");
+  train->add_flag("--quiet", t->quiet, "no progress");
+  train->callback([t, train, &action] {
+    t->options.command = trainCommand(*train);
+    action = [t] { return trainModel(*t); };
+  });
+
+  auto e = std::make_shared<LearnEvalCli>();
+  auto* ev = cmd->add_subcommand("eval", "roll a learned stepper out over recorded rollouts and report its error against the FEM");
+  ev->footer("Each rollout is stepped by the model from its first frame, driven by the recorded instrument; per segment of\n"
+             "--segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no motion).\n"
+             "Writes eval.json, errors.csv (per frame) and eval.png into --out.");
+  ev->add_option("model", e->model, "model folder")->required();
+  ev->add_option("data", e->data, "recording folder (viscera learn record)")->required();
+  ev->add_option("--out", e->out, "folder for the report")->required();
+  ev->add_option("--segment", e->segment, "length of a reporting segment (10)");
+  ev->add_option("--time", e->time, "roll out at most this time of each rollout (0: all)");
+  ev->add_flag("--no-plot", e->noPlot, "no eval.png (no gnuplot needed)");
+  ev->callback([e, &action] { action = [e] { return evaluateModel(*e); }; });
+
+  auto b = std::make_shared<LearnBenchCli>();
+  auto* bench = cmd->add_subcommand("bench", "time LibTorch's matrix product and a stepper's frame on scenes' meshes");
+  bench->add_option("scenes", b->scenes, "scenes whose body's mesh the stepper is timed on");
+  bench->add_option("--widths", b->widths, "hidden widths to time (128 256)");
+  bench->add_option("--frames", b->frames, "frames timed per width (60)");
+  bench->add_option("--threads", b->threads, "LibTorch threads (1)");
+  bench->callback([b, &action] { action = [b] { return benchModels(*b); }; });
 }
 
 }  // namespace viscera

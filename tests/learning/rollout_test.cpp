@@ -15,7 +15,7 @@
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "learning/Record.h"
-#include "learning/Rollout.h"
+#include "learning/data/Rollout.h"
 #include "study/Replay.h"
 #include "tests/support/TempDir.h"
 

@@ -1,7 +1,8 @@
-#include "learning/Rollout.h"
+#include "learning/data/Rollout.h"
 
 #include <cstring>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
 #include "core/Error.h"
 #include "core/Files.h"
@@ -190,6 +191,48 @@ std::vector<RolloutFrame> readRollout(const std::string& path, int nodes) {
     f.contacts = r.get<std::int32_t>("a frame's contact count");
   }
   return out;
+}
+
+}  // namespace viscera::learning
+
+namespace viscera::learning {
+
+RolloutSet readRolloutSet(const std::string& folder) {
+  namespace fs = std::filesystem;
+  const std::string indexPath = (fs::path(folder) / "rollouts.json").string();
+  nlohmann::json index;
+  try {
+    index = nlohmann::json::parse(readInputFile(indexPath, "rollout index"));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(SourceLoc{indexPath}, std::string("not a rollout index: ") + e.what());
+  }
+  auto need = [&](const char* key) -> const nlohmann::json& {
+    if (!index.is_object() || !index.contains(key)) throw Error(SourceLoc{indexPath}, std::string("the index has no \"") + key + "\"");
+    return index.at(key);
+  };
+  RolloutSet set;
+  set.folder = folder;
+  try {
+    if (need("format").get<std::string>() != "viscera rollouts") throw Error(SourceLoc{indexPath}, "format is not \"viscera rollouts\"");
+    set.units = need("units").get<std::string>();
+    set.frameRate = need("frameRate").get<double>();
+    set.instrumentRadius = need("instrumentRadius").get<double>();
+    const std::string meshFile = need("mesh").at("file").get<std::string>();
+    set.mesh = readRestMesh((fs::path(folder) / meshFile).string());
+    for (const auto& r : need("rollouts")) {
+      const std::string file = (fs::path(folder) / r.at("file").get<std::string>()).string();
+      if (r.value("status", "ok") != "ok") {
+        set.skipped.push_back(file);
+        continue;
+      }
+      if (!fs::is_regular_file(file)) throw Error(SourceLoc{indexPath}, "rollout " + file + " is listed but missing");
+      set.files.push_back(file);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(SourceLoc{indexPath}, std::string("malformed rollout index: ") + e.what());
+  }
+  if (!(set.frameRate > 0)) throw Error(SourceLoc{indexPath}, "frameRate must be positive");
+  return set;
 }
 
 }  // namespace viscera::learning

@@ -61,3 +61,23 @@ class RolloutWriter {
 std::vector<RolloutFrame> readRollout(const std::string& path, int nodes = -1);
 
 }  // namespace viscera::learning
+
+namespace viscera::learning {
+
+// A recording folder as its index (rollouts.json) describes it: the rest mesh, how the frames were
+// made, and the rollouts that completed (those that diverged are listed in `skipped`).
+struct RolloutSet {
+  std::string folder;
+  RestMesh mesh;
+  std::string units;
+  double frameRate = 0;          // frames per unit time
+  double instrumentRadius = 0;
+  std::vector<std::string> files;    // full paths of the usable rollouts
+  std::vector<std::string> skipped;  // rollouts marked as diverged
+};
+
+// Reads `folder`/rollouts.json and mesh.bin. Throws Error naming the file for a missing or
+// malformed index, or a rollout file that is missing.
+RolloutSet readRolloutSet(const std::string& folder);
+
+}  // namespace viscera::learning

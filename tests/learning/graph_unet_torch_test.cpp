@@ -1,0 +1,159 @@
+// The graph U-Net's layers against finite differences, and the network's ability to fit: checks of
+// the LibTorch internals of learning/nn (this file is built only with LibTorch).
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/GraphUNet.h"
+
+using namespace viscera::learning;
+
+namespace {
+
+// A grid of nx x ny x nz nodes (unit spacing), each cube split into six tetrahedra.
+RestMesh gridMesh(int nx, int ny, int nz) {
+  RestMesh m;
+  m.points.resize(3, nx * ny * nz);
+  auto id = [&](int i, int j, int k) { return i + nx * (j + ny * k); };
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) m.points.col(id(i, j, k)) = Eigen::Vector3d(i, j, k);
+  std::vector<std::array<int, 4>> tets;
+  for (int k = 0; k + 1 < nz; ++k)
+    for (int j = 0; j + 1 < ny; ++j)
+      for (int i = 0; i + 1 < nx; ++i) {
+        const int c[8] = {id(i, j, k),         id(i + 1, j, k),         id(i + 1, j + 1, k),     id(i, j + 1, k),
+                          id(i, j, k + 1),     id(i + 1, j, k + 1),     id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+        // Kuhn's six tetrahedra around the diagonal 0-6.
+        const int paths[6][2] = {{1, 2}, {1, 5}, {3, 2}, {3, 7}, {4, 5}, {4, 7}};
+        for (const auto& p : paths) tets.push_back({c[0], c[p[0]], c[p[1]], c[6]});
+      }
+  m.tets.resize(4, static_cast<int>(tets.size()));
+  for (size_t t = 0; t < tets.size(); ++t)
+    for (int a = 0; a < 4; ++a) m.tets(a, static_cast<int>(t)) = tets[t][a];
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) m.fixed.push_back(id(i, j, 0));
+  return m;
+}
+
+}  // namespace
+
+TEST(MeshGraph, LevelsCoarsenAndEveryNodeHasACluster) {
+  const RestMesh mesh = gridMesh(5, 4, 3);
+  const MeshGraph g = buildMeshGraph(mesh, 2, 2);
+  ASSERT_EQ(g.levels.size(), 3u);
+  EXPECT_EQ(g.levels[0].nodes, 60);
+  for (size_t l = 1; l < g.levels.size(); ++l) {
+    const GraphLevel& fine = g.levels[l - 1];
+    const GraphLevel& coarse = g.levels[l];
+    // Two matchings: at most half and at least a quarter of the nodes (pairs of pairs).
+    EXPECT_LE(coarse.nodes, (fine.nodes + 1) / 2);
+    EXPECT_GE(coarse.nodes, fine.nodes / 4);
+    ASSERT_EQ(static_cast<int>(coarse.cluster.size()), fine.nodes);
+    std::vector<int> members(coarse.nodes, 0);
+    for (int c : coarse.cluster) {
+      ASSERT_GE(c, 0);
+      ASSERT_LT(c, coarse.nodes);
+      ++members[c];
+    }
+    for (int k = 0; k < coarse.nodes; ++k) EXPECT_GE(members[k], 1);
+    // Cluster positions are their members' means.
+    Eigen::Matrix3Xd sum = Eigen::Matrix3Xd::Zero(3, coarse.nodes);
+    for (int i = 0; i < fine.nodes; ++i) sum.col(coarse.cluster[i]) += fine.positions.col(i);
+    for (int k = 0; k < coarse.nodes; ++k) EXPECT_LT((sum.col(k) / members[k] - coarse.positions.col(k)).norm(), 1e-12);
+    for (auto [a, b] : coarse.edges) EXPECT_LT(a, b);
+  }
+  // The grid's edges: 6 tetrahedra per cube share the cube's 12 edges, 6 face diagonals and 1 body diagonal.
+  EXPECT_GT(g.levels[0].edges.size(), 0u);
+  // Deterministic.
+  const MeshGraph h = buildMeshGraph(mesh, 2, 2);
+  EXPECT_EQ(h.levels[2].cluster, g.levels[2].cluster);
+  EXPECT_EQ(h.levels[1].edges, g.levels[1].edges);
+}
+
+// Autograd's gradient of the U-Net (graph convolutions, pooling, unpooling) against central
+// differences in double precision: relative agreement to 1e-6 (the differences' truncation error is
+// O(h^2) = 1e-12 and round-off about 1e-16 / h = 1e-10; ReLU kinks are not met by random inputs).
+TEST(GraphUNet, GradientsMatchFiniteDifferences) {
+  const RestMesh mesh = gridMesh(4, 3, 3);
+  const MeshGraph g = buildMeshGraph(mesh, 2, 1);
+  const GraphOps ops = GraphOps::build(g, torch::kFloat64);
+  torch::manual_seed(3);
+  GraphUNet net(5, 6, 2, 3);
+  net->to(torch::kFloat64);
+  const long n = g.levels[0].nodes;
+  torch::Tensor X = torch::randn({n, 2, 5}, torch::kFloat64).requires_grad_(true);
+  const torch::Tensor W = torch::randn({n, 2, 3}, torch::kFloat64);
+  auto loss = [&] { return (net->forward(X, ops) * W).sum(); };
+  loss().backward();
+  const torch::Tensor gradX = X.grad().clone();
+
+  const double h = 1e-6;
+  auto central = [&](torch::Tensor t, long k) {
+    torch::NoGradGuard noGrad;
+    double* p = t.data_ptr<double>() + k;
+    const double keep = *p;
+    *p = keep + h;
+    const double up = loss().item<double>();
+    *p = keep - h;
+    const double down = loss().item<double>();
+    *p = keep;
+    return (up - down) / (2 * h);
+  };
+  double scale = gradX.abs().max().item<double>();
+  for (long k = 0; k < X.numel(); ++k)
+    EXPECT_NEAR(central(X, k), gradX.data_ptr<double>()[k], 1e-6 * scale) << "input " << k;
+  int checked = 0;
+  for (auto& p : net->named_parameters()) {
+    const torch::Tensor grad = p.value().grad().clone();
+    const double s = std::max(1e-12, grad.abs().max().item<double>());
+    for (long k = 0; k < p.value().numel(); k += std::max<long>(1, p.value().numel() / 7), ++checked)
+      EXPECT_NEAR(central(p.value(), k), grad.data_ptr<double>()[k], 1e-6 * s) << p.key() << " " << k;
+  }
+  EXPECT_GT(checked, 50);
+}
+
+// The whole stepper (features, U-Net, scaled sigmoid, fixed nodes) fits one batch: the targets are a
+// second network's updates on four samples (so that an exact fit exists), and Adam drives the loss
+// to under 1 % of where it starts.
+TEST(GraphUNet, OverfitsOneBatch) {
+  const RestMesh mesh = gridMesh(5, 4, 4);
+  StepperNormalisers norm;
+  norm.boxMin = Eigen::Vector3d::Zero();
+  norm.boxMax = Eigen::Vector3d(4, 3, 3);
+  norm.reach = 2;
+  Stepper model(mesh, StepperArchitecture{32, 2, 1, 1.0}, norm, 1.0 / 30, "mm g s", 5);
+  const Stepper teacher(mesh, StepperArchitecture{32, 2, 1, 1.0}, norm, 1.0 / 30, "mm g s", 6);
+  Stepper::Impl& m = model.impl();
+  const int n = static_cast<int>(mesh.points.cols()), B = 4;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  torch::Tensor feats = torch::empty({n, B, kStepperInputs});
+  for (int b = 0; b < B; ++b) {
+    Eigen::Matrix3Xd x = mesh.points;
+    for (int i = 0; i < n; ++i)
+      for (int a = 0; a < 3; ++a) x(a, i) += u(rng);
+    m.features(x, InstrumentInput{Eigen::Vector3d(1 + b, 1, 3.5), Eigen::Vector3d(0, 0, -1)}, feats, b);
+  }
+  torch::Tensor target;
+  {
+    torch::NoGradGuard noGrad;
+    target = teacher.impl().update(feats);
+  }
+  torch::optim::Adam opt(m.net->parameters(), torch::optim::AdamOptions(3e-3));
+  double first = 0, last = 0;
+  for (int it = 0; it < 800; ++it) {
+    const torch::Tensor loss = (m.update(feats) - target).pow(2).mean();
+    if (it == 0) first = loss.item<double>();
+    last = loss.item<double>();
+    opt.zero_grad();
+    loss.backward();
+    opt.step();
+  }
+  EXPECT_LT(last, 0.01 * first) << "first " << first << ", last " << last;
+  // Fixed nodes never move; updates stay within maxStep cells.
+  const torch::Tensor out = m.update(feats);
+  for (int f : mesh.fixed) EXPECT_EQ(out[f].abs().max().item<float>(), 0.0f);
+  EXPECT_LE(out.abs().max().item<float>(), 1.0f);
+}
