@@ -141,6 +141,10 @@ class Correction {
  public:
   virtual ~Correction() = default;
   virtual void correct(State& s, double t, int stepIndex) const = 0;
+  // Called at the start of every step, before the drivers: a correction that is only seen (by
+  // mappings, observers and scores) puts back the state the solvers left, so that the mechanics
+  // continue as they would without it. Corrections that change the mechanics do nothing here.
+  virtual void restore(State& s) const {}
 };
 
 // Carries the state of a mechanical object to another representation at the end of each step

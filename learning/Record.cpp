@@ -25,6 +25,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
+#include "learning/data/Pairs.h"
 #include "learning/data/Rollout.h"
 #include "motion/Trajectory.h"
 #include "observation/Tissue.h"
@@ -173,6 +174,77 @@ RecordResult record(const RecordOptions& o, const std::function<void(const std::
     fs::remove_all(temp, ec);
     throw;
   }
+}
+
+PairResult recordPairs(const PairOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (o.maxPoints < 1) throw Error("--points: must be at least 1");
+  if (fs::exists(o.out)) throw Error(SourceLoc{o.out}, "--out: already exists; pairs are written to a new folder (nothing was changed)");
+  const fs::path parent = fs::absolute(o.out).parent_path();
+  if (!fs::is_directory(parent)) throw Error(SourceLoc{o.out}, "--out: the folder " + parent.string() + " does not exist");
+  study::ScoreOptions score;
+  score.maxPoints = o.maxPoints;
+  const study::PreparedDataset data = study::prepareDataset(o.data, score);
+  SceneDesc desc = io::readScene(o.scene);
+  for (const auto& a : o.sets) desc.applySetting(a);
+  const SceneDesc replayed = study::replayDescription(desc, data.data);
+
+  // The body, its grid and the camera's direction.
+  auto model = buildScene(replayed);
+  const SceneParts parts = inspect(*model, o.scene);
+  PairSet pairs;
+  pairs.scene = fs::absolute(o.scene).string();
+  pairs.dataset = fs::absolute(o.data).string();
+  pairs.units = parts.units;
+  pairs.mesh = parts.mesh;
+  for (const Topology* t : model->all<Topology>()) {
+    const auto cells = t->gridCells();
+    if (cells[0] > 0 && (cells[0] + 1) * (cells[1] + 1) * (cells[2] + 1) == parts.body->size()) {
+      pairs.grid = {cells[0] + 1, cells[1] + 1, cells[2] + 1};
+      break;
+    }
+  }
+  if (pairs.grid.nodes() == 0)
+    throw Error(SourceLoc{o.scene}, "a learned correction needs a body whose nodes are a RegularGridTopology's; '" + parts.body->name() +
+                                        "' has none");
+  checkGrid(pairs.mesh, pairs.grid, o.scene);
+  if (data.data.cameraToScene) pairs.viewDirection = data.data.cameraToScene->linear() * Eigen::Vector3d::UnitZ();
+
+  study::ReplayOptions ro;
+  ro.score = data.score;
+  ro.keepSurfaces = true;
+  const study::ReplayScore r = study::replay(replayed, data, ro);
+  if (!r.ok()) throw Error(SourceLoc{o.scene}, "the replay of " + o.data + " did not finish: " + r.reason);
+  const study::RecordedSurfaces& rec = *r.surfaces;
+  if (rec.nodes != parts.body->size()) throw Error(SourceLoc{o.scene}, "pairs record one deformable body; the scene has several");
+  for (size_t i = 0; i < rec.frame.size(); ++i) {
+    RolloutFrame f;
+    f.t = data.data.frames[rec.frame[i]].time;
+    f.x = rec.x[i].cast<float>();
+    f.tip = rec.tip[i];
+    // The instrument's velocity from its neighbouring frames.
+    const size_t a = i > 0 ? i - 1 : i, b = i + 1 < rec.frame.size() ? i + 1 : i;
+    const double dt = data.data.frames[rec.frame[b]].time - data.data.frames[rec.frame[a]].time;
+    if (dt > 0) f.velocity = (rec.tip[b] - rec.tip[a]) / dt;
+    pairs.states.push_back(std::move(f));
+    pairs.clouds.push_back(data.clouds[rec.frame[i]].cast<float>());
+  }
+  const fs::path temp = fs::path(o.out).string() + ".tmp-" + std::to_string(::getpid());
+  fs::remove_all(temp);
+  fs::create_directories(temp);
+  try {
+    writePairSet(temp.string(), pairs);
+    fs::rename(temp, o.out);
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(temp, ec);
+    throw;
+  }
+  PairResult result;
+  result.frames = static_cast<int>(pairs.states.size());
+  result.cloudRms = r.cloudRms;
+  result.wallSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
 }
 
 RestMesh sceneRestMesh(const std::string& scene, const std::vector<std::string>& sets) {

@@ -42,6 +42,20 @@ struct RecordResult {
 // diverges keeps its frames up to the divergence and is marked in the index.
 RecordResult record(const RecordOptions& options, const std::function<void(const std::string&)>& progress = {});
 
+// Pairs for a learned correction (learning/data/Pairs.h, `viscera learn record --data`): the scene
+// replays a measured dataset (study/Replay.h) and at each camera frame its body on a regular grid is
+// kept beside the frame's cloud (in the scene frame, at most `maxPoints` points chosen evenly).
+struct PairOptions {
+  std::string scene, data, out;
+  std::vector<std::string> sets;
+  int maxPoints = 4000;
+};
+struct PairResult {
+  int frames = 0;
+  double wallSeconds = 0, cloudRms = 0;  // cloudRms: the replay's mean per-frame cloud -> surface RMS
+};
+PairResult recordPairs(const PairOptions& options);
+
 // The rest mesh (nodes, tetrahedra, fixed nodes) of a scene's one deformable body, as a recording
 // of it would hold; `sets` are ADDRESS=VALUE edits. Throws Error naming the scene.
 RestMesh sceneRestMesh(const std::string& scene, const std::vector<std::string>& sets = {});

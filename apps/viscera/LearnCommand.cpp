@@ -17,6 +17,7 @@
 #include "apps/viscera/Gnuplot.h"
 #include "core/Files.h"
 #include "learning/Record.h"
+#include "learning/nn/Corrector.h"
 #include "learning/nn/Stepper.h"
 
 namespace viscera {
@@ -33,12 +34,27 @@ void parseRange(const std::string& text, const std::string& option, double& lo, 
 
 struct LearnRecordCli {
   learning::RecordOptions options;
+  std::string data;
+  int points = 4000;
   std::string depth = "2:6", speed = "5:15", faces = "top,x-,x+,y-,y+";
   bool quiet = false;
 };
 
 int recordRollouts(LearnRecordCli& c) {
   learning::RecordOptions& o = c.options;
+  if (!c.data.empty()) {
+    learning::PairOptions p;
+    p.scene = o.scene;
+    p.data = c.data;
+    p.out = o.out;
+    p.sets = o.sets;
+    p.maxPoints = c.points;
+    const learning::PairResult r = learning::recordPairs(p);
+    if (!c.quiet)
+      std::cerr << "wrote " << r.frames << " pairs (simulated body, measured cloud) to " << o.out << " in "
+                << formatDuration(r.wallSeconds) << "; the replay's mean cloud -> surface RMS is " << formatNumber(r.cloudRms) << "\n";
+    return kExitOk;
+  }
   parseRange(c.depth, "--depth", o.depthMin, o.depthMax);
   parseRange(c.speed, "--speed", o.speedMin, o.speedMax);
   o.faces.clear();
@@ -63,8 +79,12 @@ int recordRollouts(LearnRecordCli& c) {
   return kExitOk;
 }
 
+// Options shared by both kinds of model; 0 means the kind's default.
 struct LearnTrainCli {
   learning::StepperTrainOptions options;
+  learning::CorrectorTrainOptions corrector;
+  int width = 0, epochs = 0, batch = 0;
+  double validation = 0, lr = 0;
   bool quiet = false;
 };
 
@@ -81,7 +101,40 @@ std::string trainCommand(const CLI::App& train) {
   return s;
 }
 
+int trainCorrectorModel(LearnTrainCli& c) {
+  learning::CorrectorTrainOptions& o = c.corrector;
+  o.data = c.options.data;
+  o.out = c.options.out;
+  o.seed = c.options.seed;
+  o.threads = c.options.threads;
+  o.resume = c.options.resume;
+  o.command = c.options.command;
+  if (c.width) o.architecture.width = c.width;
+  if (c.epochs) o.epochs = c.epochs;
+  if (c.batch) o.batch = c.batch;
+  if (c.validation) o.validation = c.validation;
+  if (c.lr) o.learningRate = c.lr;
+  learning::trainCorrector(o, [&](const learning::CorrectorEpochReport& r) {
+    if (c.quiet) return;
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "epoch %d/%d: loss %.4g (squared cloud distance), held-out cloud distance %.4f -> %.4f (%+.1f %%), rate %.2g, %s%s",
+                  r.epoch, r.epochs, r.trainLoss, r.heldOutBefore, r.heldOutAfter,
+                  100 * (r.heldOutAfter - r.heldOutBefore) / std::max(1e-300, r.heldOutBefore), r.learningRate,
+                  formatDuration(r.seconds).c_str(), r.best ? "  [saved]" : "");
+    std::cerr << line << std::endl;
+  });
+  if (!c.quiet) std::cerr << "model: " << o.out << " (checkpoint to resume from: " << o.out << "/checkpoint)\n";
+  return kExitOk;
+}
+
 int trainModel(LearnTrainCli& c) {
+  if (c.options.data.size() > 0 && learning::isPairFolder(c.options.data.front())) return trainCorrectorModel(c);
+  if (c.width) c.options.architecture.width = c.width;
+  if (c.epochs) c.options.epochs = c.epochs;
+  if (c.batch) c.options.batch = c.batch;
+  if (c.validation) c.options.validation = c.validation;
+  if (c.lr) c.options.learningRate = c.lr;
   learning::trainStepper(c.options, [&](const learning::EpochReport& r) {
     if (c.quiet) return;
     char line[320];
@@ -99,11 +152,59 @@ int trainModel(LearnTrainCli& c) {
 struct LearnEvalCli {
   std::string model, data, out;
   double segment = 10, time = 0;
+  int points = 0;
   bool noPlot = false;
 };
 
+int evaluateCorrection(const LearnEvalCli& c) {
+  namespace fs = std::filesystem;
+  const learning::Corrector model = learning::Corrector::load(c.model);
+  const learning::PairSet pairs = learning::readPairSet(c.data);
+  if (fs::exists(c.out) && !fs::is_directory(c.out)) throw Error(SourceLoc{c.out}, "--out: exists and is not a folder");
+  const learning::CorrectionEvaluation ev = learning::evaluateCorrector(model, pairs, c.points);
+  fs::create_directories(c.out);
+  FolderLock lock(c.out);
+  const fs::path dir(c.out);
+  std::ostringstream csv;
+  csv << "t,before,after,before_squared,after_squared\n";
+  for (size_t k = 0; k < ev.time.size(); ++k)
+    csv << ev.time[k] << "," << ev.before[k] << "," << ev.after[k] << "," << ev.beforeSquared[k] << "," << ev.afterSquared[k] << "\n";
+  writeFileAtomic((dir / "errors.csv").string(), csv.str());
+  const double change = 100 * (ev.meanAfter - ev.meanBefore) / ev.meanBefore;
+  nlohmann::ordered_json j = {{"model", fs::absolute(c.model).string()},
+                              {"data", fs::absolute(c.data).string()},
+                              {"frames", ev.time.size()},
+                              {"meanDistanceBefore", ev.meanBefore},
+                              {"meanDistanceAfter", ev.meanAfter},
+                              {"changePercent", change},
+                              {"improvementStandardError", ev.improvementSe},
+                              {"meanSquaredBefore", ev.meanSquaredBefore},
+                              {"meanSquaredAfter", ev.meanSquaredAfter},
+                              {"msPerFrame", ev.msPerFrame}};
+  writeFileAtomic((dir / "eval.json").string(), j.dump(2) + "\n");
+  const std::string unit = model.units().substr(0, model.units().find(' '));
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "%zu frames: cloud -> refined surface %.4f %s uncorrected, %.4f %s corrected (%+.1f %%; improvement %.4f +- %.4f %s); "
+                "mean squared %.4f -> %.4f; %.2f ms per frame\n",
+                ev.time.size(), ev.meanBefore, unit.c_str(), ev.meanAfter, unit.c_str(), change, ev.meanBefore - ev.meanAfter,
+                ev.improvementSe, unit.c_str(), ev.meanSquaredBefore, ev.meanSquaredAfter, ev.msPerFrame);
+  std::cout << line;
+  if (!c.noPlot) {
+    std::ostringstream gp;
+    gp << "set datafile separator ','\nset terminal pngcairo size 1100,420 noenhanced\nset output outfile\n"
+       << "set xlabel 'time'\nset ylabel 'mean cloud -> refined surface distance (" << unit << ")'\nset key top left\nset grid\n"
+       << "plot 'errors.csv' using 1:2 skip 1 with lines lw 2 title 'simulation', '' using 1:3 skip 1 with lines lw 2 title 'corrected'\n";
+    writeFileAtomic((dir / "eval.gp").string(), gp.str());
+    plotWithGnuplot(dir, "eval.gp", "eval.png");
+  }
+  std::cerr << "wrote " << (dir / "eval.json").string() << ", errors.csv" << (c.noPlot ? "" : ", eval.png") << "\n";
+  return kExitOk;
+}
+
 int evaluateModel(const LearnEvalCli& c) {
   namespace fs = std::filesystem;
+  if (learning::isPairFolder(c.data)) return evaluateCorrection(c);
   const learning::Stepper model = learning::Stepper::load(c.model);
   const learning::RolloutSet data = learning::readRolloutSet(c.data);
   if (fs::exists(c.out) && !fs::is_directory(c.out)) throw Error(SourceLoc{c.out}, "--out: exists and is not a folder");
@@ -217,15 +318,18 @@ int benchModels(const LearnBenchCli& c) {
 }  // namespace
 
 void addLearnCommand(CLI::App& app, std::function<int()>& action) {
-  auto* cmd = app.add_subcommand("learn", "learned components: record rollouts, train, evaluate and time learned steppers");
+  auto* cmd = app.add_subcommand("learn", "learned components: record rollouts and pairs, train, evaluate and time learned steppers and corrections");
   cmd->require_subcommand(1);
   auto c = std::make_shared<LearnRecordCli>();
-  auto* rec = cmd->add_subcommand("record", "run randomised palpations of a scene in parallel and write their rollouts");
+  auto* rec = cmd->add_subcommand("record", "write rollouts of randomised palpations (a stepper's data) or, with --data, pairs of "
+                                              "simulated body and measured cloud (a corrector's)");
   rec->footer("The scene has one deformable body with tetrahedra and one instrument: a SphereCollisionModel on a rigid body\n"
               "driven by a TrajectoryDriver. Each rollout replaces that trajectory with a generated palpation (pokes on the\n"
               "faces given, depth and speed drawn from their ranges with seed + k) and records the body's nodes and the\n"
               "instrument at --rate frames per unit time. Output: mesh.bin, rollout_NNNN.bin, trajectories/, rollouts.json\n"
-              "(docs/user-guide.md, \"Rollouts\"). Exit code 3 when a rollout diverged (its frames up to then are kept).");
+              "(docs/user-guide.md, \"Rollouts\"). Exit code 3 when a rollout diverged (its frames up to then are kept).\n"
+              "With --data DATASET the scene replays the measured dataset instead and, at each camera frame, its body (on a\n"
+              "RegularGridTopology) is written beside the frame's cloud: pairs.json, mesh.bin, states.bin, clouds.bin.");
   rec->add_option("scene", c->options.scene, "scene file (.xml or SOFA .scn)")->required();
   rec->add_option("--out", c->options.out, "the folder to create (must not exist)")->required();
   rec->add_option("--rollouts", c->options.rollouts, "number of rollouts (8)");
@@ -236,6 +340,8 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   rec->add_option("--faces", c->faces, "faces to poke, comma-separated: top, x-, x+, y-, y+ (all)");
   rec->add_option("--seed", c->options.seed, "rollout k draws from seed + k (1)");
   rec->add_option("--jobs", c->options.jobs, "rollouts run at once (0: one per core)");
+  rec->add_option("--data", c->data, "a measured dataset: record pairs for a learned correction instead of rollouts");
+  rec->add_option("--points", c->points, "with --data: cloud points kept per frame, chosen evenly (4000)");
   rec->add_flag("--scene-trajectory", c->options.sceneTrajectory,
                 "one rollout along the scene's own trajectory (a held-out palpation; with --rollouts 1)");
   rec->add_option("--set", c->options.sets, "set a scene attribute, ADDRESS=VALUE; repeatable");
@@ -243,26 +349,33 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   rec->callback([c, &action] { action = [c] { return recordRollouts(*c); }; });
 
   auto t = std::make_shared<LearnTrainCli>();
-  auto* train = cmd->add_subcommand("train", "train a learned stepper (graph U-Net) on recorded rollouts");
-  train->footer("Trains on the rollouts of the recording folders (one mesh, one frame rate), holding the last --validation\n"
-                "share of them out: after every epoch the model is rolled out over them for --validation-time and, when\n"
-                "its mean node error improved, written to --out (config.json, weights.pt, mesh.bin). --out/checkpoint holds\n"
-                "the last epoch and the optimiser's state; --resume continues from it. See docs/user-guide.md, \"Learned stepper\".");
-  train->add_option("data", t->options.data, "recording folders (viscera learn record)")->required();
+  auto* train = cmd->add_subcommand("train", "train a learned stepper on rollouts, or a learned correction on pairs");
+  train->footer("Rollout folders train a stepper (graph U-Net): the last --validation share of the rollouts is held out, and\n"
+                "after every epoch the model is rolled out over them for --validation-time. Pair folders train a corrector\n"
+                "(2D or 3D U-Net): the last --validation share of each folder's frames is held out. Whenever the held-out\n"
+                "error improves the model is written to --out (config.json, weights.pt, mesh.bin); --out/checkpoint holds\n"
+                "the last epoch and the optimiser's state, and --resume continues from it. See docs/user-guide.md,\n"
+                "\"Learned components\".");
+  train->add_option("data", t->options.data, "rollout folders (a stepper) or pair folders (a corrector), from viscera learn record")->required();
   train->add_option("--out", t->options.out, "the model folder to create")->required();
-  train->add_option("--width", t->options.architecture.width, "features of every hidden layer (256)");
+  train->add_option("--width", t->width, "stepper: features of every hidden layer (256); corrector: of the first block (64)");
   train->add_option("--levels", t->options.architecture.levels, "pooling levels of the U-Net (3)");
   train->add_option("--matchings", t->options.architecture.matchings, "node-pair matchings per pooling level (2)");
   train->add_option("--max-step", t->options.architecture.maxStep, "largest update per frame, in cells along each axis (1)");
   train->add_flag("!--no-rest-anchor", t->options.architecture.restAnchored,
                   "do not subtract the network's output at rest (for a body whose rest shape is not its equilibrium)");
-  train->add_option("--epochs", t->options.epochs, "epochs (30)");
-  train->add_option("--batch", t->options.batch, "frames per batch (32)");
-  train->add_option("--lr", t->options.learningRate, "Adam's initial learning rate (1e-3)");
+  train->add_flag("--instrument-all", t->options.architecture.instrumentAtAllInReach,
+                  "every node within reach sees the instrument (default: the nearest only, as the dissertation)");
+  train->add_option("--epochs", t->epochs, "epochs (stepper 30, corrector 40)");
+  train->add_option("--batch", t->batch, "frames per batch (stepper 32, corrector 8)");
+  train->add_option("--lr", t->lr, "Adam's initial learning rate (1e-3)");
   train->add_option("--warmup", t->options.warmup, "epochs before half the inputs become the model's own predictions (5)");
   train->add_option("--unroll", t->options.unroll, "those predictions chain 1 to this many frames (3)");
   train->add_option("--noise", t->options.noise, "RMS of the smooth random displacement added to the inputs, in cells (0.03)");
-  train->add_option("--validation", t->options.validation, "share of the rollouts held out (0.1, at least one)");
+  train->add_option("--validation", t->validation, "stepper: share of the rollouts held out (0.1, at least one); corrector: the last share of each pair folder's frames (0.2)");
+  train->add_flag("--3d", t->corrector.architecture.threeD, "corrector: a 3D U-Net over the whole grid (default: 2D over the observed face)");
+  train->add_option("--max-correction", t->corrector.architecture.maxCorrection, "corrector: largest correction, in cells along each axis (0.5)");
+  train->add_option("--points", t->corrector.maxPoints, "corrector: cloud points per frame in the loss (1000)");
   train->add_option("--validation-time", t->options.validationTime, "time each held-out rollout is rolled out over (20)");
   train->add_option("--patience", t->options.patience, "epochs without a better held-out rollout before the rate halves (3)");
   train->add_option("--reach", t->options.reachCells, "the instrument is seen within its radius plus this many cells (1)");
@@ -276,15 +389,17 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   });
 
   auto e = std::make_shared<LearnEvalCli>();
-  auto* ev = cmd->add_subcommand("eval", "roll a learned stepper out over recorded rollouts and report its error against the FEM");
-  ev->footer("Each rollout is stepped by the model from its first frame, driven by the recorded instrument; per segment of\n"
-             "--segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no motion).\n"
-             "Writes eval.json, errors.csv (per frame) and eval.png into --out.");
+  auto* ev = cmd->add_subcommand("eval", "report a learned stepper's error against the FEM, or a corrector's effect on cloud distances");
+  ev->footer("A stepper: each rollout is stepped by the model from its first frame, driven by the recorded instrument; per\n"
+             "segment of --segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no\n"
+             "motion). A corrector: per frame of the pairs, the mean distance from the cloud to the surface refined three\n"
+             "times, without and with the correction. Writes eval.json, errors.csv (per frame) and eval.png into --out.");
   ev->add_option("model", e->model, "model folder")->required();
-  ev->add_option("data", e->data, "recording folder (viscera learn record)")->required();
+  ev->add_option("data", e->data, "rollout folder (a stepper) or pair folder (a corrector)")->required();
   ev->add_option("--out", e->out, "folder for the report")->required();
   ev->add_option("--segment", e->segment, "length of a reporting segment (10)");
   ev->add_option("--time", e->time, "roll out at most this time of each rollout (0: all)");
+  ev->add_option("--points", e->points, "corrector: cloud points per frame, chosen evenly (0: all)");
   ev->add_flag("--no-plot", e->noPlot, "no eval.png (no gnuplot needed)");
   ev->callback([e, &action] { action = [e] { return evaluateModel(*e); }; });
 

@@ -100,7 +100,10 @@ class LearnedStepper : public Component, public OdeSolver {
 
 }  // namespace
 
+void registerLearnedCorrection(Registry& r);
+
 void registerLearnedComponents(Registry& r) {
+  registerLearnedCorrection(r);
   ComponentSpec s;
   s.name = "LearnedStepper";
   s.category = "solver";

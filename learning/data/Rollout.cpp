@@ -13,6 +13,7 @@ namespace {
 
 constexpr char kMeshMagic[8] = {'V', 'S', 'C', 'M', 'E', 'S', 'H', '1'};
 constexpr char kRolloutMagic[8] = {'V', 'S', 'C', 'R', 'O', 'L', 'L', '1'};
+constexpr char kCloudMagic[8] = {'V', 'S', 'C', 'C', 'L', 'O', 'U', '1'};
 constexpr std::uint32_t kVersion = 1;
 // Bytes of a frame besides the positions: t, tip, orientation (x y z w), velocity, angular
 // velocity, force (all float64), contacts (int32).
@@ -190,6 +191,34 @@ std::vector<RolloutFrame> readRollout(const std::string& path, int nodes) {
     for (int k = 0; k < 3; ++k) f.force[k] = r.get<double>("a frame's contact force");
     f.contacts = r.get<std::int32_t>("a frame's contact count");
   }
+  return out;
+}
+
+void writeCloudFrames(const std::string& path, const std::vector<Eigen::Matrix3Xf>& clouds) {
+  Bytes b;
+  b.out.assign(kCloudMagic, 8);
+  b.put(kVersion);
+  b.put(static_cast<std::uint32_t>(clouds.size()));
+  for (const auto& c : clouds) {
+    b.put(static_cast<std::uint32_t>(c.cols()));
+    for (Eigen::Index i = 0; i < c.size(); ++i) b.put(c.data()[i]);
+  }
+  writeFileAtomic(path, b.out);
+}
+
+std::vector<Eigen::Matrix3Xf> readCloudFrames(const std::string& path) {
+  Reader r(path, readInputFile(path, "cloud frames"));
+  r.magic(kCloudMagic, "cloud-frames file");
+  const auto frames = r.get<std::uint32_t>("the frame count");
+  if (frames > r.remaining() / 4) r.fail("announces " + std::to_string(frames) + " frames, more than its size can hold");
+  std::vector<Eigen::Matrix3Xf> out(frames);
+  for (auto& c : out) {
+    const auto n = r.get<std::uint32_t>("a frame's point count");
+    r.need(12ull * n, "a frame's points");
+    c.resize(3, n);
+    for (Eigen::Index i = 0; i < c.size(); ++i) c.data()[i] = r.get<float>("a frame's points");
+  }
+  if (r.remaining() != 0) r.fail(std::to_string(r.remaining()) + " bytes after the last frame");
   return out;
 }
 

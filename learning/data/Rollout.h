@@ -64,6 +64,12 @@ std::vector<RolloutFrame> readRollout(const std::string& path, int nodes = -1);
 
 namespace viscera::learning {
 
+// Point clouds, one per frame (single precision, 3 x #points each): the measured side of the pairs
+// a learned correction trains on. Little-endian: the 8 bytes VSCCLOU1, uint32 version (1), uint32
+// frames, then per frame uint32 points P and P x (x, y, z) float32.
+void writeCloudFrames(const std::string& path, const std::vector<Eigen::Matrix3Xf>& clouds);
+std::vector<Eigen::Matrix3Xf> readCloudFrames(const std::string& path);
+
 // A recording folder as its index (rollouts.json) describes it: the rest mesh, how the frames were
 // made, and the rollouts that completed (those that diverged are listed in `skipped`).
 struct RolloutSet {

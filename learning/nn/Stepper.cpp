@@ -284,6 +284,7 @@ void Stepper::save(const std::string& folder, const std::string& training) const
                        {"matchings", m.arch.matchings},
                        {"maxStep", m.arch.maxStep},
                        {"restAnchored", m.arch.restAnchored},
+                       {"instrumentNodes", m.arch.instrumentAtAllInReach ? "all within reach" : "nearest within reach"},
                        {"parameters", parameters()}};
   c["normalisers"] = {{"cell", vec(m.norm.cell)},
                       {"boxMin", vec(m.norm.boxMin)},
@@ -325,6 +326,10 @@ Stepper Stepper::load(const std::string& folder) {
     arch.matchings = a.at("matchings").get<int>();
     arch.maxStep = a.at("maxStep").get<double>();
     arch.restAnchored = a.at("restAnchored").get<bool>();
+    const std::string seen = a.at("instrumentNodes").get<std::string>();
+    if (seen != "all within reach" && seen != "nearest within reach")
+      throw Error(SourceLoc{configPath}, "architecture.instrumentNodes must be \"nearest within reach\" or \"all within reach\", got \"" + seen + "\"");
+    arch.instrumentAtAllInReach = seen == "all within reach";
     const auto& nj = c.at("normalisers");
     StepperNormalisers norm;
     norm.cell = vec(nj.at("cell"));

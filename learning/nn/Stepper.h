@@ -34,6 +34,9 @@ struct StepperArchitecture {
   // The network's output at the rest shape with no instrument in reach is subtracted from its
   // output: a body at rest and left alone stays exactly at rest (its rest shape is its equilibrium).
   bool restAnchored = true;
+  // Which nodes see the instrument: only the nearest within reach (the dissertation), or every
+  // node within reach, each with the instrument's position relative to itself.
+  bool instrumentAtAllInReach = false;
 };
 
 // Inputs are scaled by these before they reach the network; stored with the model.

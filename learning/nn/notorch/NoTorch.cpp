@@ -1,5 +1,6 @@
 // The learned stepper in a build without LibTorch: everything that needs the network says so.
 #include "core/Error.h"
+#include "learning/nn/Corrector.h"
 #include "learning/nn/Stepper.h"
 
 namespace viscera::learning {
@@ -12,6 +13,7 @@ namespace {
 }  // namespace
 
 struct Stepper::Impl {};
+struct Corrector::Impl {};
 
 bool torchAvailable() { return false; }
 void setTorchThreads(int) {}
@@ -37,5 +39,27 @@ std::int64_t Stepper::parameters() const { noTorch(); }
 const std::string& Stepper::training() const { noTorch(); }
 GemmSpeed measureGemm(int, int, int, int) { noTorch(); }
 void trainStepper(const StepperTrainOptions&, const std::function<void(const EpochReport&)>&) { noTorch(); }
+
+Corrector::Corrector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Corrector::Corrector(const RestMesh&, const GridShape&, const Eigen::Vector3d&, const CorrectorArchitecture&, const std::string&,
+                     std::uint64_t) {
+  noTorch();
+}
+Corrector Corrector::load(const std::string&) { noTorch(); }
+Corrector::~Corrector() = default;
+Corrector::Corrector(Corrector&&) noexcept = default;
+Corrector& Corrector::operator=(Corrector&&) noexcept = default;
+void Corrector::checkMesh(const RestMesh&, const std::string&) const { noTorch(); }
+void Corrector::save(const std::string&, const std::string&) const { noTorch(); }
+Eigen::Matrix3Xd Corrector::correct(const Eigen::Matrix3Xd&, const InstrumentInput&) const { noTorch(); }
+const std::vector<int>& Corrector::movableNodes() const { noTorch(); }
+const RestMesh& Corrector::mesh() const { noTorch(); }
+const GridShape& Corrector::grid() const { noTorch(); }
+const CorrectorArchitecture& Corrector::architecture() const { noTorch(); }
+const std::string& Corrector::units() const { noTorch(); }
+const std::string& Corrector::training() const { noTorch(); }
+std::int64_t Corrector::parameters() const { noTorch(); }
+Eigen::Matrix3Xd Corrector::refinedSurface(const Eigen::Matrix3Xd&) const { noTorch(); }
+void trainCorrector(const CorrectorTrainOptions&, const std::function<void(const CorrectorEpochReport&)>&) { noTorch(); }
 
 }  // namespace viscera::learning

@@ -80,6 +80,10 @@ struct Stepper::Impl {
   mutable std::int64_t anchorVersion_ = -1;
 };
 
+// The corrector's loss on one frame: the mean over the cloud's points (M, 3) of the squared distance
+// to the closest of the surface points (S, 3) (the one-sided Chamfer distance).
+torch::Tensor chamferLoss(const torch::Tensor& cloud, const torch::Tensor& surface);
+
 // A network's parameters by name (weights.pt); loading refuses a missing parameter or one of
 // another shape, naming both (`configPath` is the architecture's source).
 void saveParameters(const torch::nn::Module& net, const std::string& path);
@@ -108,12 +112,19 @@ void Stepper::Impl::features(const Positions& x, const InstrumentInput& instrume
     f[6] = fixed[i] ? 1.0f : 0.0f;
     for (int k = 7; k < kStepperInputs; ++k) f[k] = 0;
   }
-  if (nearest >= 0) {
-    float* f = base + nearest * stride;
-    const Eigen::Vector3d rel = (instrument.position - x.col(nearest).template cast<double>()) / norm.reach;
+  auto see = [&](int i) {
+    float* f = base + i * stride;
+    const Eigen::Vector3d rel = (instrument.position - x.col(i).template cast<double>()) / norm.reach;
     const Eigen::Vector3d vel = instrument.velocity / norm.velocityScale;
     f[7] = 1;
     for (int a = 0; a < 3; ++a) f[8 + a] = static_cast<float>(rel[a]), f[11 + a] = static_cast<float>(vel[a]);
+  };
+  if (arch.instrumentAtAllInReach) {
+    const double reach2 = norm.reach * norm.reach;
+    for (int i = 0; i < n; ++i)
+      if ((x.col(i).template cast<double>() - instrument.position).squaredNorm() <= reach2) see(i);
+  } else if (nearest >= 0) {
+    see(nearest);
   }
 }
 

@@ -1,8 +1,11 @@
-// Rolling a learned stepper out over recorded rollouts (no LibTorch here: it only calls the model).
+// Evaluating learned components: a stepper rolled out over recorded rollouts against the FEM, a
+// corrector on measured clouds (no LibTorch here: this only calls the models).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
 #include "core/Error.h"
+#include "learning/nn/Corrector.h"
 #include "learning/nn/Stepper.h"
 
 namespace viscera::learning {
@@ -75,6 +78,62 @@ std::vector<RolloutEvaluation> evaluateStepper(const Stepper& model, const Rollo
     out.back().file = file;
   }
   return out;
+}
+
+CloudDistance cloudToPoints(const Eigen::Matrix3Xf& cloud, const Eigen::Matrix3Xd& points) {
+  CloudDistance d;
+  if (cloud.cols() == 0 || points.cols() == 0) return d;
+  const Eigen::Matrix3Xf p = points.cast<float>();
+  for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
+    const float best = (p.colwise() - cloud.col(i)).colwise().squaredNorm().minCoeff();
+    d.mean += std::sqrt(best);
+    d.meanSquared += best;
+  }
+  d.mean /= cloud.cols();
+  d.meanSquared /= cloud.cols();
+  return d;
+}
+
+CorrectionEvaluation evaluateCorrector(const Corrector& model, const PairSet& pairs, int maxPoints) {
+  model.checkMesh(pairs.mesh, "the pairs " + pairs.folder);
+  if (pairs.units != model.units()) throw Error(SourceLoc{pairs.folder}, "the pairs are in " + pairs.units + ", the model in " + model.units());
+  CorrectionEvaluation ev;
+  double seconds = 0, sumD = 0, sumD2 = 0;
+  int counted = 0;
+  for (size_t k = 0; k < pairs.states.size(); ++k) {
+    const RolloutFrame& f = pairs.states[k];
+    Eigen::Matrix3Xf cloud = pairs.clouds[k];
+    if (cloud.cols() == 0) continue;
+    if (maxPoints > 0 && cloud.cols() > maxPoints) {
+      Eigen::Matrix3Xf pick(3, maxPoints);
+      for (int i = 0; i < maxPoints; ++i) pick.col(i) = cloud.col(static_cast<Eigen::Index>(i) * cloud.cols() / maxPoints);
+      cloud = pick;
+    }
+    const Eigen::Matrix3Xd x = f.x.cast<double>();
+    const auto t0 = std::chrono::steady_clock::now();
+    const Eigen::Matrix3Xd corrected = model.correct(x, {f.tip, f.velocity});
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const CloudDistance before = cloudToPoints(cloud, model.refinedSurface(x)), after = cloudToPoints(cloud, model.refinedSurface(corrected));
+    ev.time.push_back(f.t);
+    ev.before.push_back(before.mean);
+    ev.after.push_back(after.mean);
+    ev.beforeSquared.push_back(before.meanSquared);
+    ev.afterSquared.push_back(after.meanSquared);
+    const double d = before.mean - after.mean;
+    sumD += d;
+    sumD2 += d * d;
+    ++counted;
+  }
+  if (counted == 0) throw Error(SourceLoc{pairs.folder}, "no frame with cloud points to evaluate");
+  auto mean = [](const std::vector<double>& v) { double s = 0; for (double x : v) s += x; return s / v.size(); };
+  ev.meanBefore = mean(ev.before);
+  ev.meanAfter = mean(ev.after);
+  ev.meanSquaredBefore = mean(ev.beforeSquared);
+  ev.meanSquaredAfter = mean(ev.afterSquared);
+  ev.msPerFrame = 1e3 * seconds / counted;
+  const double md = sumD / counted;
+  ev.improvementSe = counted > 1 ? std::sqrt(std::max(0.0, (sumD2 / counted - md * md) / (counted - 1))) : 0.0;
+  return ev;
 }
 
 }  // namespace viscera::learning

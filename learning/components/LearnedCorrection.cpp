@@ -1,0 +1,118 @@
+// LearnedCorrection: a learned correction (learning/nn/Corrector.h) applied at the post-solve seam,
+// so that mappings, exporters, cameras and scores see the corrected body. By default the mechanics
+// continue from the state the solver left (the correction is put back at the next step's start), as
+// the corrector was trained on uncorrected simulations; `persistent` keeps it in the state instead.
+#include <algorithm>
+#include <memory>
+
+#include "core/Error.h"
+#include "core/Registry.h"
+#include "core/Scene.h"
+#include "core/State.h"
+#include "engine/Roles.h"
+#include "engine/collision/Collision.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/Placement.h"
+#include "engine/rigid/RigidObject.h"
+#include "learning/nn/Corrector.h"
+#include "observation/Tissue.h"
+
+namespace viscera {
+
+namespace {
+
+using learning::Corrector;
+using learning::RestMesh;
+
+class LearnedCorrection : public Component, public Correction, public Stateful {
+ public:
+  using Component::Component;
+
+  void init() override {
+    state_ = &contextState(*this);
+    RestMesh mesh;
+    mesh.points = state_->x0;
+    const TetList* tets = obs::bodyTetrahedra(*state_);
+    if (!tets) throw error("the body '" + state_->name() + "' has no tetrahedra");
+    mesh.tets = *tets;
+    for (ProjectiveConstraint* c : scene().all<ProjectiveConstraint>()) {
+      if (auto* comp = dynamic_cast<Component*>(c)) scene().initComponent(*comp);
+      if (&c->mstate() == state_) mesh.fixed.insert(mesh.fixed.end(), c->fixedNodes().begin(), c->fixedNodes().end());
+    }
+    std::sort(mesh.fixed.begin(), mesh.fixed.end());
+    mesh.fixed.erase(std::unique(mesh.fixed.begin(), mesh.fixed.end()), mesh.fixed.end());
+    try {
+      model_ = std::make_shared<const Corrector>(Corrector::load(scene().resolvePath(attrs_.str("model"))));
+    } catch (const Error& e) {
+      throw fileErrorFor(e, *this, "model");
+    }
+    try {
+      model_->checkMesh(mesh, "the body '" + state_->name() + "'");
+    } catch (const Error& e) {
+      throw error("model", e.what());
+    }
+    if (model_->units() != scene().units().str())
+      throw error("model", "the model works in " + model_->units() + ", the scene in " + scene().units().str());
+    persistent_ = attrs_.boolean("persistent");
+    if (Component* c = linkedComponent("instrument")) {
+      sphere_ = dynamic_cast<SphereCollisionModel*>(c);
+      if (!sphere_) throw error("instrument", "'" + c->name() + "' is a " + c->typeName() + ", not a SphereCollisionModel");
+    } else {
+      const auto spheres = scene().all<SphereCollisionModel>();
+      if (spheres.size() != 1)
+        throw error("instrument", "the scene has " + std::to_string(spheres.size()) +
+                                      " SphereCollisionModels on instruments; link the one the model follows");
+      sphere_ = spheres.front();
+    }
+    scene().initComponent(*sphere_);
+  }
+
+  // The positions the solver left, while a correction is shown.
+  struct Live : ComponentStateOf<Live> {
+    Eigen::Matrix3Xd solved;
+    void save(StateWriter& out) const override { out.put(solved); }
+    void load(StateReader& in) override { in.get(solved); }
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
+
+  void correct(State& st, double t, int stepIndex) const override {
+    Eigen::Matrix3Xd& x = state_->x(st);
+    const RigidObject::Live& tool = sphere_->body().live(st);
+    const Eigen::Matrix3Xd corrected = model_->correct(x, {tool.p, tool.v});
+    if (!persistent_) stateIn<Live>(st).solved = x;
+    x = corrected;
+  }
+
+  void restore(State& st) const override {
+    Live& live = stateIn<Live>(st);
+    if (live.solved.size() == 0) return;
+    state_->x(st) = live.solved;
+    live.solved.resize(3, 0);
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  SphereCollisionModel* sphere_ = nullptr;
+  std::shared_ptr<const Corrector> model_;
+  bool persistent_ = false;
+};
+
+}  // namespace
+
+void registerLearnedCorrection(Registry& r) {
+  ComponentSpec s;
+  s.name = "LearnedCorrection";
+  s.category = "solver";
+  s.doc = "A learned correction (U-Net over the body's grid, dissertation 4.3) applied after each step's solve: mappings, "
+          "exporters, cameras and scores see the corrected body. The model folder (viscera learn train on correction "
+          "pairs) must have been trained on this body's grid and fixed nodes, in the scene's units. By default the next "
+          "step starts from the solver's uncorrected state, as the corrector was trained.";
+  s.add(AttrSpec::string("model").req().help("model folder (config.json, weights.pt, mesh.bin), relative to the scene"));
+  s.add(AttrSpec::boolean("persistent").def("false").help("the next step starts from the corrected state"));
+  s.add(AttrSpec::link("instrument").help("the instrument's SphereCollisionModel (default: the scene's only one)"));
+  s.add(AttrSpec::link("mstate").help("the body (default: the MechanicalObject of the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<LearnedCorrection>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera
