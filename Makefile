@@ -7,7 +7,7 @@ VISCERA   := $(BUILD_DIR)/apps/viscera/viscera
 CCACHE    := $(shell command -v ccache 2>/dev/null)
 CMAKE_FLAGS := -G Ninja -DCMAKE_BUILD_TYPE=Release $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
-.PHONY: all deps configure build demo test test-asan bench bench-accuracy fuzz docs clean
+.PHONY: all deps configure build demo test test-asan bench bench-accuracy fuzz docs clean models
 
 all: build
 
@@ -39,6 +39,10 @@ BASELINE ?= 805c660
 bench: build
 	$(BUILD_DIR)/tests/viscera_bench --benchmark_filter=-Accuracy --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 	bash scripts/bench-baseline.sh $(BUILD_DIR) $(BASELINE) 5
+
+# The learned models shipped in scenes/models/, made with the project's own commands (about an hour).
+models: build
+	bash scripts/make-models.sh $(BUILD_DIR)
 
 # The palpation replay against a run with a ten times smaller step (long: about 15 minutes).
 bench-accuracy: build

@@ -166,9 +166,10 @@ int evaluateCorrection(const LearnEvalCli& c) {
   FolderLock lock(c.out);
   const fs::path dir(c.out);
   std::ostringstream csv;
-  csv << "t,before,after,before_squared,after_squared\n";
+  csv << "t,before,after,before_squared,after_squared,surface_before,surface_after\n";
   for (size_t k = 0; k < ev.time.size(); ++k)
-    csv << ev.time[k] << "," << ev.before[k] << "," << ev.after[k] << "," << ev.beforeSquared[k] << "," << ev.afterSquared[k] << "\n";
+    csv << ev.time[k] << "," << ev.before[k] << "," << ev.after[k] << "," << ev.beforeSquared[k] << "," << ev.afterSquared[k] << ","
+        << ev.surfaceBefore[k] << "," << ev.surfaceAfter[k] << "\n";
   writeFileAtomic((dir / "errors.csv").string(), csv.str());
   const double change = 100 * (ev.meanAfter - ev.meanBefore) / ev.meanBefore;
   nlohmann::ordered_json j = {{"model", fs::absolute(c.model).string()},
@@ -180,21 +181,26 @@ int evaluateCorrection(const LearnEvalCli& c) {
                               {"improvementStandardError", ev.improvementSe},
                               {"meanSquaredBefore", ev.meanSquaredBefore},
                               {"meanSquaredAfter", ev.meanSquaredAfter},
+                              {"meanSurfaceDistanceBefore", ev.meanSurfaceBefore},
+                              {"meanSurfaceDistanceAfter", ev.meanSurfaceAfter},
+                              {"surfaceChangePercent", 100 * (ev.meanSurfaceAfter - ev.meanSurfaceBefore) / ev.meanSurfaceBefore},
                               {"msPerFrame", ev.msPerFrame}};
   writeFileAtomic((dir / "eval.json").string(), j.dump(2) + "\n");
   const std::string unit = model.units().substr(0, model.units().find(' '));
-  char line[320];
+  char line[480];
   std::snprintf(line, sizeof line,
                 "%zu frames: cloud -> refined surface %.4f %s uncorrected, %.4f %s corrected (%+.1f %%; improvement %.4f +- %.4f %s); "
-                "mean squared %.4f -> %.4f; %.2f ms per frame\n",
+                "mean squared %.4f -> %.4f; cloud -> exact surface %.4f -> %.4f %s (%+.1f %%); %.2f ms per frame\n",
                 ev.time.size(), ev.meanBefore, unit.c_str(), ev.meanAfter, unit.c_str(), change, ev.meanBefore - ev.meanAfter,
-                ev.improvementSe, unit.c_str(), ev.meanSquaredBefore, ev.meanSquaredAfter, ev.msPerFrame);
+                ev.improvementSe, unit.c_str(), ev.meanSquaredBefore, ev.meanSquaredAfter, ev.meanSurfaceBefore, ev.meanSurfaceAfter,
+                unit.c_str(), 100 * (ev.meanSurfaceAfter - ev.meanSurfaceBefore) / ev.meanSurfaceBefore, ev.msPerFrame);
   std::cout << line;
   if (!c.noPlot) {
     std::ostringstream gp;
     gp << "set datafile separator ','\nset terminal pngcairo size 1100,420 noenhanced\nset output outfile\n"
        << "set xlabel 'time'\nset ylabel 'mean cloud -> refined surface distance (" << unit << ")'\nset key top left\nset grid\n"
-       << "plot 'errors.csv' using 1:2 skip 1 with lines lw 2 title 'simulation', '' using 1:3 skip 1 with lines lw 2 title 'corrected'\n";
+       << "plot 'errors.csv' using 1:2 skip 1 with lines lw 2 title 'simulation (refined vertices)', '' using 1:3 skip 1 with lines lw 2 title 'corrected (refined vertices)', "
+       << "'' using 1:6 skip 1 with lines dt 2 title 'simulation (surface)', '' using 1:7 skip 1 with lines dt 2 title 'corrected (surface)'\n";
     writeFileAtomic((dir / "eval.gp").string(), gp.str());
     plotWithGnuplot(dir, "eval.gp", "eval.png");
   }
@@ -276,6 +282,7 @@ int evaluateModel(const LearnEvalCli& c) {
 struct LearnBenchCli {
   std::vector<std::string> scenes;
   std::vector<int> widths = {128, 256};
+  std::vector<int> correctorWidths = {16, 64};
   int frames = 60, threads = 1;
 };
 
@@ -311,6 +318,25 @@ int benchModels(const LearnBenchCli& c) {
                   std::filesystem::path(scene).filename().c_str(), static_cast<int>(mesh.points.cols()), width,
                   static_cast<long long>(model.parameters()), med, c.frames, (1000.0 / 30) / med);
     }
+    const auto grid = learning::gridOf(mesh);
+    if (!grid) continue;
+    for (bool threeD : {false, true})
+      for (int width : c.correctorWidths) {
+        const learning::Corrector corrector(mesh, *grid, Eigen::Vector3d(0, 0, -1), learning::CorrectorArchitecture{threeD, width, 0.5},
+                                            "mm g s", 1);
+        const Eigen::Vector3d tip(0.5 * (norm.boxMin.x() + norm.boxMax.x()), 0.5 * (norm.boxMin.y() + norm.boxMax.y()), norm.boxMax.z() + 2);
+        for (int i = 0; i < 3; ++i) corrector.correct(mesh.points, {tip, Eigen::Vector3d(0, 0, -5)});
+        std::vector<double> ms;
+        for (int f = 0; f < c.frames; ++f) {
+          const auto t0 = std::chrono::steady_clock::now();
+          corrector.correct(mesh.points, {tip, Eigen::Vector3d(0, 0, -5)});
+          ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        }
+        std::nth_element(ms.begin(), ms.begin() + ms.size() / 2, ms.end());
+        std::printf("corrector %s (%d x %d x %d grid), %s, width %d (%lld parameters): %.3f ms per frame (median of %d)\n",
+                    std::filesystem::path(scene).filename().c_str(), grid->nx, grid->ny, grid->nz, threeD ? "3D" : "2D", width,
+                    static_cast<long long>(corrector.parameters()), ms[ms.size() / 2], c.frames);
+      }
   }
   return kExitOk;
 }
@@ -404,9 +430,10 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   ev->callback([e, &action] { action = [e] { return evaluateModel(*e); }; });
 
   auto b = std::make_shared<LearnBenchCli>();
-  auto* bench = cmd->add_subcommand("bench", "time LibTorch's matrix product and a stepper's frame on scenes' meshes");
+  auto* bench = cmd->add_subcommand("bench", "time LibTorch's matrix product, and a stepper's and a corrector's frame on scenes' bodies");
   bench->add_option("scenes", b->scenes, "scenes whose body's mesh the stepper is timed on");
   bench->add_option("--widths", b->widths, "hidden widths to time (128 256)");
+  bench->add_option("--corrector-widths", b->correctorWidths, "corrector widths to time, 2D and 3D, on grid bodies (16 64)");
   bench->add_option("--frames", b->frames, "frames timed per width (60)");
   bench->add_option("--threads", b->threads, "LibTorch threads (1)");
   bench->callback([b, &action] { action = [b] { return benchModels(*b); }; });

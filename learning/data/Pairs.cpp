@@ -1,5 +1,6 @@
 #include "learning/data/Pairs.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -27,6 +28,26 @@ GridShape checkGrid(const RestMesh& mesh, const GridShape& g, const std::string&
         if ((mesh.points.col(g.index(i, j, k)) - (o + Eigen::Vector3d(i * h.x(), j * h.y(), k * h.z()))).norm() > tol)
           throw Error(what + ": node " + std::to_string(g.index(i, j, k)) + " is not at grid place (" + std::to_string(i) + ", " +
                       std::to_string(j) + ", " + std::to_string(k) + "): the body's nodes are not a regular grid in SOFA's order");
+  return g;
+}
+
+std::optional<GridShape> gridOf(const RestMesh& mesh) {
+  if (mesh.points.cols() < 8) return std::nullopt;
+  int counts[3];
+  for (int a = 0; a < 3; ++a) {
+    std::vector<double> v(mesh.points.cols());
+    for (Eigen::Index i = 0; i < mesh.points.cols(); ++i) v[i] = mesh.points(a, i);
+    std::sort(v.begin(), v.end());
+    const double tol = 1e-9 * std::max(1.0, std::abs(v.back() - v.front()));
+    counts[a] = 1;
+    for (size_t i = 1; i < v.size(); ++i) counts[a] += v[i] - v[i - 1] > tol;
+  }
+  const GridShape g{counts[0], counts[1], counts[2]};
+  try {
+    checkGrid(mesh, g, "grid");
+  } catch (const Error&) {
+    return std::nullopt;
+  }
   return g;
 }
 

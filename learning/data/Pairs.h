@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,10 @@ struct PairSet {
 // The grid shape of a rest mesh's nodes, checked: node i + nx (j + ny k) must lie at the grid's
 // corner plus i, j, k spacings. Throws Error (naming `what`) when the nodes are not such a grid.
 GridShape checkGrid(const RestMesh& mesh, const GridShape& shape, const std::string& what);
+
+// The grid shape of a rest mesh whose nodes are a regular grid in SOFA's order (found from the
+// distinct coordinates along each axis), or nothing.
+std::optional<GridShape> gridOf(const RestMesh& mesh);
 
 // Writes the pair files into `folder` (which must exist); each file is written whole.
 void writePairSet(const std::string& folder, const PairSet& pairs);

@@ -309,11 +309,10 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
     if (rep.best) {
       bestError = rep.heldOutAfter;
       model->save(out.string(), record.dump());
+      saveOptimizer(optimizer, (out / "optimizer.pt").string());
     }
     model->save(checkpointDir.string(), record.dump());
-    const std::string optPath = (checkpointDir / "optimizer.pt").string(), optTemp = optPath + ".tmp";
-    torch::save(optimizer, optTemp);
-    fs::rename(optTemp, optPath);
+    saveOptimizer(optimizer, (checkpointDir / "optimizer.pt").string());
     const nlohmann::ordered_json st = {{"epoch", epoch}, {"bestError", bestError}, {"learningRate", rep.learningRate}};
     writeFileAtomic((checkpointDir / "state.json").string(), st.dump(2) + "\n");
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();

@@ -95,11 +95,15 @@ struct CorrectorEpochReport {
 };
 void trainCorrector(const CorrectorTrainOptions& options, const std::function<void(const CorrectorEpochReport&)>& progress);
 
-// Per frame of a pair folder: the cloud's distance to the refined surface before and after the
-// correction, and the model's time.
+// Per frame of a pair folder: the cloud's distance to the refined surface (and to the exact boundary
+// surface) before and after the correction, and the model's time.
 struct CorrectionEvaluation {
   std::vector<double> time, before, after, beforeSquared, afterSquared;
   double meanBefore = 0, meanAfter = 0, meanSquaredBefore = 0, meanSquaredAfter = 0, msPerFrame = 0;
+  // The same frames' mean exact distance from the cloud to the body's boundary surface (closest
+  // points on its triangles, as dataset scores measure it), without and with the correction.
+  std::vector<double> surfaceBefore, surfaceAfter;
+  double meanSurfaceBefore = 0, meanSurfaceAfter = 0;
   // Standard error of the mean per-frame improvement (before - after): the noise of the comparison.
   double improvementSe = 0;
 };

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "core/Error.h"
+#include "observation/SurfaceIndex.h"
 #include "learning/nn/Corrector.h"
 #include "learning/nn/Stepper.h"
 
@@ -14,6 +16,19 @@ namespace {
 
 double meanDistance(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xf& b) {
   return (a - b.cast<double>()).colwise().norm().mean();
+}
+
+// Mean distance from the cloud's points to the closest points of the triangles over nodes x.
+double meanSurfaceDistance(const Eigen::Matrix3Xf& cloud, const Eigen::Matrix3Xd& x, const obs::TriangleList& triangles) {
+  const obs::SurfaceIndex index(x, triangles);
+  double sum = 0;
+  int hint = -1;
+  for (Eigen::Index i = 0; i < cloud.cols(); ++i) {
+    const auto hit = index.closest(cloud.col(i).cast<double>(), std::numeric_limits<double>::infinity(), hint);
+    hint = hit.triangle;
+    sum += std::sqrt(hit.distance2);
+  }
+  return cloud.cols() ? sum / cloud.cols() : 0.0;
 }
 
 }  // namespace
@@ -98,6 +113,7 @@ CorrectionEvaluation evaluateCorrector(const Corrector& model, const PairSet& pa
   model.checkMesh(pairs.mesh, "the pairs " + pairs.folder);
   if (pairs.units != model.units()) throw Error(SourceLoc{pairs.folder}, "the pairs are in " + pairs.units + ", the model in " + model.units());
   CorrectionEvaluation ev;
+  const obs::TriangleList triangles = obs::boundaryTriangles(pairs.mesh.tets, pairs.mesh.points);
   double seconds = 0, sumD = 0, sumD2 = 0;
   int counted = 0;
   for (size_t k = 0; k < pairs.states.size(); ++k) {
@@ -114,6 +130,8 @@ CorrectionEvaluation evaluateCorrector(const Corrector& model, const PairSet& pa
     const Eigen::Matrix3Xd corrected = model.correct(x, {f.tip, f.velocity});
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const CloudDistance before = cloudToPoints(cloud, model.refinedSurface(x)), after = cloudToPoints(cloud, model.refinedSurface(corrected));
+    ev.surfaceBefore.push_back(meanSurfaceDistance(cloud, x, triangles));
+    ev.surfaceAfter.push_back(meanSurfaceDistance(cloud, corrected, triangles));
     ev.time.push_back(f.t);
     ev.before.push_back(before.mean);
     ev.after.push_back(after.mean);
@@ -130,6 +148,8 @@ CorrectionEvaluation evaluateCorrector(const Corrector& model, const PairSet& pa
   ev.meanAfter = mean(ev.after);
   ev.meanSquaredBefore = mean(ev.beforeSquared);
   ev.meanSquaredAfter = mean(ev.afterSquared);
+  ev.meanSurfaceBefore = mean(ev.surfaceBefore);
+  ev.meanSurfaceAfter = mean(ev.surfaceAfter);
   ev.msPerFrame = 1e3 * seconds / counted;
   const double md = sumD / counted;
   ev.improvementSe = counted > 1 ? std::sqrt(std::max(0.0, (sumD2 / counted - md * md) / (counted - 1))) : 0.0;

@@ -246,6 +246,10 @@ void saveParameters(const torch::nn::Module& net, const std::string& path) {
   });
 }
 
+void saveOptimizer(torch::optim::Optimizer& optimizer, const std::string& path) {
+  writeAtomically(path, [&](const std::string& temp) { torch::save(optimizer, temp); });
+}
+
 // Loads parameters by name, refusing a missing one or one of another shape.
 void loadParameters(torch::nn::Module& net, const std::string& path, const std::string& configPath) {
   torch::serialize::InputArchive archive;

@@ -289,6 +289,7 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
       trainingRecord["heldOutBaselineError"] = rep.baselineError;
       trainingRecord["heldOutTime"] = o.validationTime;
       model->save(out.string(), trainingRecord.dump());
+      saveOptimizer(optimizer, (out / "optimizer.pt").string());
     } else if (++sinceBest >= o.patience) {
       setLr(optimizer, lrOf(optimizer) / 2);
       sinceBest = 0;
@@ -296,9 +297,7 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
     // The checkpoint: this epoch's network and optimiser, to resume from.
     trainingRecord["epoch"] = epoch;
     model->save(checkpointDir.string(), trainingRecord.dump());
-    const std::string optPath = (checkpointDir / "optimizer.pt").string(), optTemp = optPath + ".tmp";
-    torch::save(optimizer, optTemp);
-    fs::rename(optTemp, optPath);
+    saveOptimizer(optimizer, (checkpointDir / "optimizer.pt").string());
     nlohmann::ordered_json st = {{"epoch", epoch},        {"sinceBest", sinceBest},       {"bestEpoch", bestEpoch},
                                  {"bestError", bestError}, {"learningRate", lrOf(optimizer)}};
     writeFileAtomic((checkpointDir / "state.json").string(), st.dump(2) + "\n");

@@ -222,4 +222,8 @@ TEST(LearnedCorrection, TrainsOnPairsAndResumes) {
   const CorrectionEvaluation ev = evaluateCorrector(Corrector::load(dir / "model"), pairs);
   EXPECT_EQ(ev.time.size(), 31u);
   EXPECT_GT(ev.meanBefore, 0);
+  ASSERT_EQ(ev.surfaceBefore.size(), 31u);
+  // The exact surface is nearer than its refined vertices.
+  EXPECT_LT(ev.meanSurfaceBefore, ev.meanBefore);
+  EXPECT_GT(ev.meanSurfaceBefore, 0);
 }

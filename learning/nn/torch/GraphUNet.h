@@ -88,6 +88,8 @@ torch::Tensor chamferLoss(const torch::Tensor& cloud, const torch::Tensor& surfa
 // another shape, naming both (`configPath` is the architecture's source).
 void saveParameters(const torch::nn::Module& net, const std::string& path);
 void loadParameters(torch::nn::Module& net, const std::string& path, const std::string& configPath);
+// The optimiser's state (optimizer.pt), written through a temporary file and a rename.
+void saveOptimizer(torch::optim::Optimizer& optimizer, const std::string& path);
 
 template <class Positions>
 void Stepper::Impl::features(const Positions& x, const InstrumentInput& instrument, torch::Tensor& out, int b) const {
