@@ -141,10 +141,11 @@ class Correction {
  public:
   virtual ~Correction() = default;
   virtual void correct(State& s, double t, int stepIndex) const = 0;
-  // Called at the start of every step, before the drivers: a correction that is only seen (by
-  // mappings, observers and scores) puts back the state the solvers left, so that the mechanics
-  // continue as they would without it. Corrections that change the mechanics do nothing here.
-  virtual void restore(State& s) const {}
+  // Called at the start of every step, before the drivers, in reverse order: a correction that is
+  // only seen (by mappings, observers and scores) takes back what it added, so that the mechanics
+  // continue as they would without it; true when it changed the state (mappings then run again).
+  // Corrections that change the mechanics do nothing here.
+  virtual bool restore(State& s) const { return false; }
 };
 
 // Carries the state of a mechanical object to another representation at the end of each step

@@ -83,7 +83,10 @@ std::optional<Diverged> Simulation::step() {
   const double tEnd = scene_.startTime() + next * dt;
   // Instruments to their end-of-step pose, contacts against the tissue at the step start, the
   // (free) motion of every body, then the contact constraints.
-  for (Correction* c : corrections_) c->restore(st);
+  bool restored = false;
+  for (auto c = corrections_.rbegin(); c != corrections_.rend(); ++c) restored |= (*c)->restore(st);
+  if (restored)  // mapped states (collision surfaces on them) follow the state the solvers left
+    for (Mapping* m : mappings_) m->apply(st);
   for (Driver* d : drivers_) d->drive(st, tEnd, dt);
   auto failed = [this](std::optional<Diverged> bad) {
     for (Observer* o : observers_) o->diverged(state_, state_.time, state_.steps);

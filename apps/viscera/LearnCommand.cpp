@@ -135,14 +135,16 @@ int trainModel(LearnTrainCli& c) {
   if (c.batch) c.options.batch = c.batch;
   if (c.validation) c.options.validation = c.validation;
   if (c.lr) c.options.learningRate = c.lr;
+  const std::string units = learning::readRolloutSet(c.options.data.front()).units;
+  const std::string length = units.substr(0, units.find(' '));
   learning::trainStepper(c.options, [&](const learning::EpochReport& r) {
     if (c.quiet) return;
     char line[320];
     std::snprintf(line, sizeof line,
-                  "epoch %d/%d: loss %.3g (held-out %.3g) cells^2, held-out rollout %.3f mm (no motion %.3f mm), "
+                  "epoch %d/%d: loss %.3g (held-out %.3g) cells^2, held-out rollout %.3f %s (no motion %.3f %s), "
                   "rate %.2g, %s%s",
-                  r.epoch, r.epochs, r.trainLoss, r.validationLoss, r.rolloutError, r.baselineError, r.learningRate,
-                  formatDuration(r.seconds).c_str(), r.best ? "  [saved]" : "");
+                  r.epoch, r.epochs, r.trainLoss, r.validationLoss, r.rolloutError, length.c_str(), r.baselineError,
+                  length.c_str(), r.learningRate, formatDuration(r.seconds).c_str(), r.best ? "  [saved]" : "");
     std::cerr << line << std::endl;
   });
   if (!c.quiet) std::cerr << "model: " << c.options.out << " (checkpoint to resume from: " << c.options.out << "/checkpoint)\n";
@@ -230,6 +232,7 @@ int evaluateModel(const LearnEvalCli& c) {
   auto& list = report["rollouts"] = nlohmann::ordered_json::array();
   for (size_t r = 0; r < evals.size(); ++r) {
     const auto& e = evals[r];
+    if (e.time.size() < 2) continue;  // nothing to step
     const std::string name = fs::path(e.file).stem().string();
     nlohmann::ordered_json j = {{"file", e.file}, {"mean", e.mean}, {"noMotionMean", e.baselineMean}};
     auto& segs = j["segments"] = nlohmann::ordered_json::array();
@@ -248,6 +251,7 @@ int evaluateModel(const LearnEvalCli& c) {
     all += e.mean * n, allBase += e.baselineMean * n, frames += n, seconds += e.seconds;
     list.push_back(j);
   }
+  if (frames == 0) throw Error(SourceLoc{c.data}, "no rollout has two frames or more: nothing to evaluate");
   report["mean"] = all / frames;
   report["noMotionMean"] = allBase / frames;
   report["worstSegmentMean"] = worst;

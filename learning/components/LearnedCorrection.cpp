@@ -67,11 +67,17 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
     scene().initComponent(*sphere_);
   }
 
-  // The positions the solver left, while a correction is shown.
+  // While a correction is shown: the positions the solver left and the corrected ones.
   struct Live : ComponentStateOf<Live> {
-    Eigen::Matrix3Xd solved;
-    void save(StateWriter& out) const override { out.put(solved); }
-    void load(StateReader& in) override { in.get(solved); }
+    Eigen::Matrix3Xd solved, corrected;
+    void save(StateWriter& out) const override {
+      out.put(solved);
+      out.put(corrected);
+    }
+    void load(StateReader& in) override {
+      in.get(solved);
+      in.get(corrected);
+    }
   };
   std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
 
@@ -79,15 +85,27 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
     Eigen::Matrix3Xd& x = state_->x(st);
     const RigidObject::Live& tool = sphere_->body().live(st);
     const Eigen::Matrix3Xd corrected = model_->correct(x, {tool.p, tool.v});
-    if (!persistent_) stateIn<Live>(st).solved = x;
+    if (!persistent_) {
+      Live& live = stateIn<Live>(st);
+      live.solved = x;
+      live.corrected = corrected;
+    }
     x = corrected;
   }
 
-  void restore(State& st) const override {
+  // Takes the correction back: exactly the solver's positions when nothing changed the state since,
+  // else only the correction is subtracted (what a later correction added stays).
+  bool restore(State& st) const override {
     Live& live = stateIn<Live>(st);
-    if (live.solved.size() == 0) return;
-    state_->x(st) = live.solved;
+    if (live.solved.size() == 0) return false;
+    Eigen::Matrix3Xd& x = state_->x(st);
+    if (x == live.corrected)
+      x = live.solved;
+    else
+      x -= live.corrected - live.solved;
     live.solved.resize(3, 0);
+    live.corrected.resize(3, 0);
+    return true;
   }
 
  private:

@@ -31,36 +31,48 @@ struct CorrectorArchitecture {
 
 class Corrector {
  public:
+  // What a backend implements (learning/nn/Backend.h).
+  struct Impl {
+    virtual ~Impl() = default;
+    virtual void checkMesh(const RestMesh& mesh, const std::string& what) const = 0;
+    virtual void save(const std::string& folder, const std::string& training) const = 0;
+    virtual Eigen::Matrix3Xd correct(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const = 0;
+    virtual const std::vector<int>& movableNodes() const = 0;
+    virtual const RestMesh& mesh() const = 0;
+    virtual const GridShape& grid() const = 0;
+    virtual const CorrectorArchitecture& architecture() const = 0;
+    virtual const std::string& units() const = 0;
+    virtual const std::string& training() const = 0;
+    virtual std::int64_t parameters() const = 0;
+    virtual Eigen::Matrix3Xd refinedSurface(const Eigen::Matrix3Xd& x) const = 0;
+  };
+
   // A new network; its last layer starts at zero, so a new corrector changes nothing.
   Corrector(const RestMesh& mesh, const GridShape& grid, const Eigen::Vector3d& viewDirection,
             const CorrectorArchitecture& arch, const std::string& units, std::uint64_t seed);
   static Corrector load(const std::string& folder);
-  ~Corrector();
-  Corrector(Corrector&&) noexcept;
-  Corrector& operator=(Corrector&&) noexcept;
+  explicit Corrector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
-  void checkMesh(const RestMesh& mesh, const std::string& what) const;
-  void save(const std::string& folder, const std::string& training) const;
+  void checkMesh(const RestMesh& mesh, const std::string& what) const { impl_->checkMesh(mesh, what); }
+  void save(const std::string& folder, const std::string& training) const { impl_->save(folder, training); }
 
   // The corrected nodes for simulated nodes `x` and the instrument then.
-  Eigen::Matrix3Xd correct(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const;
+  Eigen::Matrix3Xd correct(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const { return impl_->correct(x, instrument); }
   // The nodes the correction may move (2D: the observed face, fixed nodes left out).
-  const std::vector<int>& movableNodes() const;
+  const std::vector<int>& movableNodes() const { return impl_->movableNodes(); }
 
-  const RestMesh& mesh() const;
-  const GridShape& grid() const;
-  const CorrectorArchitecture& architecture() const;
-  const std::string& units() const;
-  const std::string& training() const;
-  std::int64_t parameters() const;
+  const RestMesh& mesh() const { return impl_->mesh(); }
+  const GridShape& grid() const { return impl_->grid(); }
+  const CorrectorArchitecture& architecture() const { return impl_->architecture(); }
+  const std::string& units() const { return impl_->units(); }
+  const std::string& training() const { return impl_->training(); }
+  std::int64_t parameters() const { return impl_->parameters(); }
   // Points of the boundary surface refined three times, for nodes x (what the loss compares with).
-  Eigen::Matrix3Xd refinedSurface(const Eigen::Matrix3Xd& x) const;
+  Eigen::Matrix3Xd refinedSurface(const Eigen::Matrix3Xd& x) const { return impl_->refinedSurface(x); }
 
-  struct Impl;
   Impl& impl() const { return *impl_; }
 
  private:
-  explicit Corrector(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -54,7 +54,7 @@ RolloutEvaluation evaluateRollout(const Stepper& model, const std::vector<Rollou
     ev.error.push_back(meanDistance(x, fr.x));
     ev.baseline.push_back(meanDistance(rest, fr.x));
   }
-  // Segments [k segment, (k+1) segment); the first frame (the shared start) is left out.
+  // Segments (k segment, (k+1) segment]; the first frame (the shared start) is left out.
   const size_t n = ev.time.size();
   for (size_t f = 1; f < n;) {
     const int k = static_cast<int>(std::floor((ev.time[f] - 1e-9) / segment));

@@ -7,7 +7,8 @@
 //
 // A model is a folder: weights.pt (the network), optimizer.pt (the optimiser's state, to resume
 // training) and config.json (architecture, normalisers, the mesh's fingerprint, units, frame
-// period, how it was trained), checked on load. LibTorch stays inside this module's .cpp files.
+// period, how it was trained), checked on load. The network runs in LibTorch's backend, a plugin
+// loaded on first use (learning/nn/Backend.h), so that nothing else pays for loading LibTorch.
 #pragma once
 
 #include <Eigen/Core>
@@ -21,7 +22,8 @@
 
 namespace viscera::learning {
 
-// True when this build has LibTorch (the learned components work); otherwise they refuse to load.
+// True when LibTorch's backend can be loaded (the learned components work); otherwise they refuse
+// to, saying why (learning/nn/Backend.h).
 bool torchAvailable();
 // LibTorch's threads for the layers' products (0 leaves the current setting).
 void setTorchThreads(int threads);
@@ -55,40 +57,51 @@ struct InstrumentInput {
 
 class Stepper {
  public:
+  // What a backend implements (LibTorch's, in a plugin loaded on first use: learning/nn/Backend.h).
+  struct Impl {
+    virtual ~Impl() = default;
+    virtual void checkMesh(const RestMesh& mesh, const std::string& what) const = 0;
+    virtual void save(const std::string& folder, const std::string& training) const = 0;
+    virtual Eigen::Matrix3Xd step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const = 0;
+    virtual const RestMesh& mesh() const = 0;
+    virtual const StepperArchitecture& architecture() const = 0;
+    virtual const StepperNormalisers& normalisers() const = 0;
+    virtual double framePeriod() const = 0;
+    virtual const std::string& units() const = 0;
+    virtual std::int64_t parameters() const = 0;
+    virtual const std::string& training() const = 0;
+  };
+
   // A new network with weights drawn from `seed`.
   Stepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm, double framePeriod,
           const std::string& units, std::uint64_t seed);
   // Loads a model folder; throws Error naming the folder's file for anything missing or malformed.
   static Stepper load(const std::string& folder);
-  ~Stepper();
-  Stepper(Stepper&&) noexcept;
-  Stepper& operator=(Stepper&&) noexcept;
+  explicit Stepper(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
   // Throws Error when `mesh` is not the mesh the model was made for, naming both (`what` says whose
   // mesh it is: a scene's node, a recording).
-  void checkMesh(const RestMesh& mesh, const std::string& what) const;
+  void checkMesh(const RestMesh& mesh, const std::string& what) const { impl_->checkMesh(mesh, what); }
 
   // Writes the model folder (mesh.bin, weights.pt, config.json): each file through a temporary and
   // a rename, config.json last. `training` (JSON text) says how it was trained.
-  void save(const std::string& folder, const std::string& training) const;
+  void save(const std::string& folder, const std::string& training) const { impl_->save(folder, training); }
 
   // The nodes at the next frame from the nodes `x` (3 x #nodes) and the instrument then.
-  Eigen::Matrix3Xd step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const;
+  Eigen::Matrix3Xd step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const { return impl_->step(x, instrument); }
 
-  const RestMesh& mesh() const;
-  const StepperArchitecture& architecture() const;
-  const StepperNormalisers& normalisers() const;
-  double framePeriod() const;
-  const std::string& units() const;
-  std::int64_t parameters() const;
+  const RestMesh& mesh() const { return impl_->mesh(); }
+  const StepperArchitecture& architecture() const { return impl_->architecture(); }
+  const StepperNormalisers& normalisers() const { return impl_->normalisers(); }
+  double framePeriod() const { return impl_->framePeriod(); }
+  const std::string& units() const { return impl_->units(); }
+  std::int64_t parameters() const { return impl_->parameters(); }
   // The training record of a loaded model (JSON text; empty for a new one).
-  const std::string& training() const;
+  const std::string& training() const { return impl_->training(); }
 
-  struct Impl;
   Impl& impl() const { return *impl_; }
 
  private:
-  explicit Stepper(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

@@ -52,7 +52,7 @@ Corrector perturbed(const RestMesh& mesh, bool threeD, std::uint64_t seed = 3, d
   Corrector c(mesh, kGrid, Eigen::Vector3d(0, 0.5, -1), CorrectorArchitecture{threeD, 8, limit}, "mm g s", seed);
   torch::NoGradGuard noGrad;
   torch::manual_seed(seed);
-  for (auto& p : c.impl().net->parameters()) p.add_(0.3 * torch::randn_like(p));
+  for (auto& p : static_cast<TorchCorrector&>(c.impl()).net->parameters()) p.add_(0.3 * torch::randn_like(p));
   return c;
 }
 

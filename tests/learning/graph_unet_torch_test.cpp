@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/MeshGraph.h"
 #include "learning/nn/torch/GraphUNet.h"
 
 using namespace viscera::learning;
@@ -125,7 +125,7 @@ TEST(GraphUNet, OverfitsOneBatch) {
   norm.reach = 2;
   Stepper model(mesh, StepperArchitecture{32, 2, 1, 1.0}, norm, 1.0 / 30, "mm g s", 5);
   const Stepper teacher(mesh, StepperArchitecture{32, 2, 1, 1.0}, norm, 1.0 / 30, "mm g s", 6);
-  Stepper::Impl& m = model.impl();
+  TorchStepper& m = static_cast<TorchStepper&>(model.impl());
   const int n = static_cast<int>(mesh.points.cols()), B = 4;
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> u(-0.3, 0.3);
@@ -139,7 +139,7 @@ TEST(GraphUNet, OverfitsOneBatch) {
   torch::Tensor target;
   {
     torch::NoGradGuard noGrad;
-    target = teacher.impl().update(feats);
+    target = static_cast<TorchStepper&>(teacher.impl()).update(feats);
   }
   torch::optim::Adam opt(m.net->parameters(), torch::optim::AdamOptions(3e-3));
   double first = 0, last = 0;

@@ -1,5 +1,5 @@
-// The graph U-Net of the learned stepper, on LibTorch. Internal to learning/nn: only this module's
-// .cpp files include it (torch's headers stay out of everything else).
+// The graph U-Net of the learned stepper, on LibTorch: part of the LibTorch plugin
+// (learning/nn/torch/, libviscera_torch.so); only its .cpp files and its tests include it.
 //
 // Tensors are node-major, (nodes, batch, features), so that a graph operator (a sparse nodes x nodes
 // matrix) applies to all samples and features at once as one sparse-dense product.
@@ -9,7 +9,7 @@
 
 #include <mutex>
 
-#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/MeshGraph.h"
 #include "learning/nn/Stepper.h"
 
 namespace viscera::learning {
@@ -49,12 +49,13 @@ TORCH_MODULE(GraphUNet);
 
 constexpr int kStepperInputs = 14;  // offset 3, rest position 3, fixed 1, instrument seen 1, relative position 3, velocity 3
 
-struct Stepper::Impl {
-  RestMesh mesh;
+// The stepper on LibTorch.
+struct TorchStepper : Stepper::Impl {
+  RestMesh rest;
   StepperArchitecture arch;
   StepperNormalisers norm;
-  double framePeriod = 0;
-  std::string units, training;
+  double period = 0;
+  std::string unitSystem, trainingRecord;
   std::uint64_t hash = 0;
   MeshGraph graph;
   GraphOps ops;
@@ -64,7 +65,18 @@ struct Stepper::Impl {
   std::vector<char> fixed;  // per node
   torch::Tensor restFeatures;  // (n, 1, inputs): the rest shape, no instrument in reach
 
-  Impl(RestMesh m, const StepperArchitecture& a, const StepperNormalisers& n, double period, std::string u);
+  TorchStepper(RestMesh m, const StepperArchitecture& a, const StepperNormalisers& n, double framePeriod, std::string u);
+
+  void checkMesh(const RestMesh& mesh, const std::string& what) const override;
+  void save(const std::string& folder, const std::string& training) const override;
+  Eigen::Matrix3Xd step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const override;
+  const RestMesh& mesh() const override { return rest; }
+  const StepperArchitecture& architecture() const override { return arch; }
+  const StepperNormalisers& normalisers() const override { return norm; }
+  double framePeriod() const override { return period; }
+  const std::string& units() const override { return unitSystem; }
+  std::int64_t parameters() const override;
+  const std::string& training() const override { return trainingRecord; }
   // Writes sample b's features (nodes at `x`, the instrument) into `out`, a (n, batch, inputs) tensor.
   template <class Positions>
   void features(const Positions& x, const InstrumentInput& instrument, torch::Tensor& out, int b) const;
@@ -91,9 +103,16 @@ void loadParameters(torch::nn::Module& net, const std::string& path, const std::
 // The optimiser's state (optimizer.pt), written through a temporary file and a rename.
 void saveOptimizer(torch::optim::Optimizer& optimizer, const std::string& path);
 
+// The backend's entry points for the stepper (learning/nn/Backend.h).
+std::unique_ptr<Stepper::Impl> newTorchStepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm,
+                                               double framePeriod, const std::string& units, std::uint64_t seed);
+std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder);
+void torchTrainStepper(const StepperTrainOptions& options, const std::function<void(const EpochReport&)>& progress);
+GemmSpeed torchMeasureGemm(int m, int k, int n, int repeats);
+
 template <class Positions>
-void Stepper::Impl::features(const Positions& x, const InstrumentInput& instrument, torch::Tensor& out, int b) const {
-  const int n = static_cast<int>(mesh.points.cols());
+void TorchStepper::features(const Positions& x, const InstrumentInput& instrument, torch::Tensor& out, int b) const {
+  const int n = static_cast<int>(rest.points.cols());
   const long B = out.size(1), F = out.size(2);
   float* base = out.data_ptr<float>() + b * F;
   const long stride = B * F;
@@ -107,7 +126,7 @@ void Stepper::Impl::features(const Positions& x, const InstrumentInput& instrume
   const Eigen::Vector3d half = (0.5 * (norm.boxMax - norm.boxMin)).cwiseMax(1e-12);
   for (int i = 0; i < n; ++i) {
     float* f = base + i * stride;
-    const Eigen::Vector3d p = mesh.points.col(i);
+    const Eigen::Vector3d p = rest.points.col(i);
     const Eigen::Vector3d offset = (x.col(i).template cast<double>() - p).cwiseQuotient(norm.cell);
     const Eigen::Vector3d rest = (p - mid).cwiseQuotient(half);
     for (int a = 0; a < 3; ++a) f[a] = static_cast<float>(offset[a]), f[3 + a] = static_cast<float>(rest[a]);

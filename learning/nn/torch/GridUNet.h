@@ -7,8 +7,9 @@
 #include <tuple>
 #include <utility>
 
+#include "core/Error.h"
 #include "learning/nn/Corrector.h"
-#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/MeshGraph.h"
 #include "learning/nn/torch/GraphUNet.h"
 
 namespace viscera::learning {
@@ -35,8 +36,9 @@ struct ConvBlockImpl : torch::nn::Module {
 };
 TORCH_MODULE(ConvBlock);
 
-// Three blocks down (w, 2w, 4w), max-pooling between them; the pose joins at the bottom (four
-// convolutions back to 4w); three blocks up with skip connections; a 1x1 convolution to 3 outputs.
+// Three blocks down (w, 2w, 4w), each followed by a 2x max-pooling; the pose joins at the bottom
+// (four convolutions back to 4w); three blocks up with skip connections; a 1x1 convolution to 3
+// outputs.
 struct GridUNetImpl : torch::nn::Module {
   GridUNetImpl(int dims, int inputs, int width) : dims(dims) {
     e1 = register_module("e1", ConvBlock(dims, inputs, width));
@@ -93,12 +95,13 @@ inline std::pair<int, int> observedFace(const Eigen::Vector3d& view) {
   return {axis, side};
 }
 
-struct Corrector::Impl {
-  RestMesh mesh;
-  GridShape grid;
+// The corrector on LibTorch.
+struct TorchCorrector : Corrector::Impl {
+  RestMesh rest;
+  GridShape shape;
   Eigen::Vector3d view;
   CorrectorArchitecture arch;
-  std::string units, training;
+  std::string unitSystem, trainingRecord;
   std::uint64_t hash = 0;
   Eigen::Vector3d cell, boxMin, boxMax;
   double velocityScale = 10;
@@ -112,19 +115,19 @@ struct Corrector::Impl {
   torch::Tensor faceIndex;     // long (faceNodes)
   torch::Tensor refine;        // sparse (refined points, n)
 
-  Impl(RestMesh m, const GridShape& g, const Eigen::Vector3d& v, const CorrectorArchitecture& a, std::string u)
-      : mesh(std::move(m)), grid(checkGrid(mesh, g, "corrector")), view(v.normalized()), arch(a), units(std::move(u)) {
+  TorchCorrector(RestMesh m, const GridShape& g, const Eigen::Vector3d& v, const CorrectorArchitecture& a, std::string u)
+      : rest(std::move(m)), shape(checkGrid(rest, g, "corrector")), view(v.normalized()), arch(a), unitSystem(std::move(u)) {
     if (a.width < 1 || a.width > 1024) throw Error("corrector width must be 1 to 1024, got " + std::to_string(a.width));
     if (!(a.maxCorrection > 0) || a.maxCorrection > 5) throw Error("corrector maxCorrection must be in (0, 5] cells");
-    hash = meshHash(mesh);
-    boxMin = mesh.points.rowwise().minCoeff();
-    boxMax = mesh.points.rowwise().maxCoeff();
-    cell = Eigen::Vector3d((boxMax.x() - boxMin.x()) / (grid.nx - 1), (boxMax.y() - boxMin.y()) / (grid.ny - 1),
-                           (boxMax.z() - boxMin.z()) / (grid.nz - 1));
+    hash = meshHash(rest);
+    boxMin = rest.points.rowwise().minCoeff();
+    boxMax = rest.points.rowwise().maxCoeff();
+    cell = Eigen::Vector3d((boxMax.x() - boxMin.x()) / (shape.nx - 1), (boxMax.y() - boxMin.y()) / (shape.ny - 1),
+                           (boxMax.z() - boxMin.z()) / (shape.nz - 1));
     std::tie(faceAxis, faceSide) = observedFace(view);
     faceU = faceAxis == 0 ? 1 : 0;
     faceV = faceAxis == 2 ? 1 : 2;
-    const int dims[3] = {grid.nx, grid.ny, grid.nz};
+    const int dims[3] = {shape.nx, shape.ny, shape.nz};
     nu = dims[faceU];
     nv = dims[faceV];
     for (int iu = 0; iu < nu; ++iu)
@@ -133,11 +136,11 @@ struct Corrector::Impl {
         ijk[faceAxis] = faceSide ? dims[faceAxis] - 1 : 0;
         ijk[faceU] = iu;
         ijk[faceV] = iv;
-        faceNodes.push_back(grid.index(ijk[0], ijk[1], ijk[2]));
+        faceNodes.push_back(shape.index(ijk[0], ijk[1], ijk[2]));
       }
-    const int n = grid.nodes();
+    const int n = shape.nodes();
     std::vector<char> fixed(n, 0), seen(n, arch.threeD ? 1 : 0);
-    for (int f : mesh.fixed) fixed[f] = 1;
+    for (int f : rest.fixed) fixed[f] = 1;
     if (!arch.threeD)
       for (int i : faceNodes) seen[i] = 1;
     movableMask = torch::zeros({n, 1});
@@ -148,17 +151,29 @@ struct Corrector::Impl {
     restFeatures = torch::zeros({n, kCorrectorInputs});
     const Eigen::Vector3d mid = 0.5 * (boxMin + boxMax), half = (0.5 * (boxMax - boxMin)).cwiseMax(1e-12);
     for (int i = 0; i < n; ++i)
-      for (int a2 = 0; a2 < 3; ++a2) restFeatures[i][3 + a2] = float((mesh.points(a2, i) - mid[a2]) / half[a2]);
+      for (int a2 = 0; a2 < 3; ++a2) restFeatures[i][3 + a2] = float((rest.points(a2, i) - mid[a2]) / half[a2]);
     net = GridUNet(arch.threeD ? 3 : 2, kCorrectorInputs, arch.width);
     buildRefinement();
   }
+
+  void checkMesh(const RestMesh& mesh, const std::string& what) const override;
+  void save(const std::string& folder, const std::string& training) const override;
+  Eigen::Matrix3Xd correct(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const override;
+  const std::vector<int>& movableNodes() const override { return movable; }
+  const RestMesh& mesh() const override { return rest; }
+  const GridShape& grid() const override { return shape; }
+  const CorrectorArchitecture& architecture() const override { return arch; }
+  const std::string& units() const override { return unitSystem; }
+  const std::string& training() const override { return trainingRecord; }
+  std::int64_t parameters() const override;
+  Eigen::Matrix3Xd refinedSurface(const Eigen::Matrix3Xd& x) const override;
 
   // Bilinear points of each boundary face refined three times, as a sparse (points, n) matrix.
   void buildRefinement() {
     std::vector<int64_t> rows, cols;
     std::vector<float> vals;
     int64_t point = 0;
-    const int dims[3] = {grid.nx, grid.ny, grid.nz};
+    const int dims[3] = {shape.nx, shape.ny, shape.nz};
     for (int axis = 0; axis < 3; ++axis)
       for (int side = 0; side < 2; ++side) {
         const int u = axis == 0 ? 1 : 0, v = axis == 2 ? 1 : 2;
@@ -178,24 +193,24 @@ struct Corrector::Impl {
                 ijk[axis] = side ? dims[axis] - 1 : 0;
                 ijk[u] = cu + du;
                 ijk[v] = cv + dv;
-                rows.push_back(point), cols.push_back(grid.index(ijk[0], ijk[1], ijk[2])), vals.push_back(static_cast<float>(w));
+                rows.push_back(point), cols.push_back(shape.index(ijk[0], ijk[1], ijk[2])), vals.push_back(static_cast<float>(w));
               }
             ++point;
           }
       }
     torch::Tensor idx = torch::empty({2, static_cast<int64_t>(rows.size())}, torch::kLong);
     for (size_t k = 0; k < rows.size(); ++k) idx[0][k] = rows[k], idx[1][k] = cols[k];
-    refine = torch::sparse_coo_tensor(idx, torch::tensor(vals), {point, static_cast<int64_t>(grid.nodes())}).coalesce();
+    refine = torch::sparse_coo_tensor(idx, torch::tensor(vals), {point, static_cast<int64_t>(shape.nodes())}).coalesce();
   }
 
   // Node features of B frames (nodes x(b), float) and their pose, as the network's tensors.
   torch::Tensor nodeFeatures(const std::vector<const Eigen::Matrix3Xf*>& xs) const {
-    const int n = grid.nodes(), B = static_cast<int>(xs.size());
+    const int n = shape.nodes(), B = static_cast<int>(xs.size());
     torch::Tensor f = restFeatures.unsqueeze(0).repeat({B, 1, 1});  // (B, n, C)
     auto fa = f.accessor<float, 3>();
     for (int b = 0; b < B; ++b)
       for (int i = 0; i < n; ++i)
-        for (int a = 0; a < 3; ++a) fa[b][i][a] = static_cast<float>(((*xs[b])(a, i) - mesh.points(a, i)) / cell[a]);
+        for (int a = 0; a < 3; ++a) fa[b][i][a] = static_cast<float>(((*xs[b])(a, i) - rest.points(a, i)) / cell[a]);
     return f;
   }
   torch::Tensor poseFeatures(const std::vector<InstrumentInput>& tools) const {
@@ -211,10 +226,10 @@ struct Corrector::Impl {
   }
   // Corrections (B, n, 3) from node features (B, n, C) and poses (B, P).
   torch::Tensor corrections(const torch::Tensor& feats, const torch::Tensor& pose) const {
-    const int64_t B = feats.size(0), n = grid.nodes();
+    const int64_t B = feats.size(0), n = shape.nodes();
     torch::Tensor raw;
     if (arch.threeD) {
-      const torch::Tensor g = feats.view({B, grid.nz, grid.ny, grid.nx, kCorrectorInputs}).permute({0, 4, 1, 2, 3});
+      const torch::Tensor g = feats.view({B, shape.nz, shape.ny, shape.nx, kCorrectorInputs}).permute({0, 4, 1, 2, 3});
       raw = net->forward(g, pose).permute({0, 2, 3, 4, 1}).reshape({B, n, 3});
     } else {
       const torch::Tensor face = feats.index_select(1, faceIndex).view({B, nu, nv, kCorrectorInputs}).permute({0, 3, 1, 2});
@@ -224,5 +239,11 @@ struct Corrector::Impl {
     return limit * torch::tanh(raw) * movableMask;
   }
 };
+
+// The backend's entry points for the corrector (learning/nn/Backend.h).
+std::unique_ptr<Corrector::Impl> newTorchCorrector(const RestMesh& mesh, const GridShape& grid, const Eigen::Vector3d& view,
+                                                   const CorrectorArchitecture& arch, const std::string& units, std::uint64_t seed);
+std::unique_ptr<Corrector::Impl> loadTorchCorrector(const std::string& folder);
+void torchTrainCorrector(const CorrectorTrainOptions& options, const std::function<void(const CorrectorEpochReport&)>& progress);
 
 }  // namespace viscera::learning

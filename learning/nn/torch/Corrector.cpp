@@ -13,7 +13,7 @@
 
 #include "core/Error.h"
 #include "core/Files.h"
-#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/MeshGraph.h"
 #include "learning/nn/torch/GridUNet.h"
 
 namespace viscera::learning {
@@ -37,32 +37,21 @@ torch::Tensor chamferLoss(const torch::Tensor& cloud, const torch::Tensor& surfa
   return std::get<0>(torch::cdist(cloud, surface).pow(2).min(1)).mean();
 }
 
-Corrector::Corrector(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-Corrector::~Corrector() = default;
-Corrector::Corrector(Corrector&&) noexcept = default;
-Corrector& Corrector::operator=(Corrector&&) noexcept = default;
-
-Corrector::Corrector(const RestMesh& mesh, const GridShape& grid, const Eigen::Vector3d& view, const CorrectorArchitecture& arch,
-                     const std::string& units, std::uint64_t seed) {
+std::unique_ptr<Corrector::Impl> newTorchCorrector(const RestMesh& mesh, const GridShape& grid, const Eigen::Vector3d& view,
+                                                   const CorrectorArchitecture& arch, const std::string& units, std::uint64_t seed) {
   torch::manual_seed(seed);
-  impl_ = std::make_unique<Impl>(mesh, grid, view, arch, units);
+  return std::make_unique<TorchCorrector>(mesh, grid, view, arch, units);
 }
 
-const std::vector<int>& Corrector::movableNodes() const { return impl_->movable; }
-const RestMesh& Corrector::mesh() const { return impl_->mesh; }
-const GridShape& Corrector::grid() const { return impl_->grid; }
-const CorrectorArchitecture& Corrector::architecture() const { return impl_->arch; }
-const std::string& Corrector::units() const { return impl_->units; }
-const std::string& Corrector::training() const { return impl_->training; }
-std::int64_t Corrector::parameters() const {
+std::int64_t TorchCorrector::parameters() const {
   std::int64_t n = 0;
-  for (const auto& p : impl_->net->parameters()) n += p.numel();
+  for (const auto& p : net->parameters()) n += p.numel();
   return n;
 }
 
-Eigen::Matrix3Xd Corrector::correct(const Eigen::Matrix3Xd& x, const InstrumentInput& tool) const {
-  const Impl& m = *impl_;
-  if (x.cols() != m.grid.nodes()) throw Error("corrector: " + std::to_string(x.cols()) + " nodes given, the model has " + std::to_string(m.grid.nodes()));
+Eigen::Matrix3Xd TorchCorrector::correct(const Eigen::Matrix3Xd& x, const InstrumentInput& tool) const {
+  const TorchCorrector& m = *this;
+  if (x.cols() != m.shape.nodes()) throw Error("corrector: " + std::to_string(x.cols()) + " nodes given, the model has " + std::to_string(m.shape.nodes()));
   torch::NoGradGuard noGrad;
   const Eigen::Matrix3Xf xf = x.cast<float>();
   const torch::Tensor c = m.corrections(m.nodeFeatures({&xf}), m.poseFeatures({tool})).contiguous();
@@ -73,9 +62,9 @@ Eigen::Matrix3Xd Corrector::correct(const Eigen::Matrix3Xd& x, const InstrumentI
   return out;
 }
 
-Eigen::Matrix3Xd Corrector::refinedSurface(const Eigen::Matrix3Xd& x) const {
+Eigen::Matrix3Xd TorchCorrector::refinedSurface(const Eigen::Matrix3Xd& x) const {
   const torch::Tensor xt = torch::from_blob(const_cast<double*>(x.data()), {x.cols(), 3}, torch::kFloat64).to(torch::kFloat32);
-  const torch::Tensor p = torch::mm(impl_->refine, xt).contiguous();
+  const torch::Tensor p = torch::mm(refine, xt).contiguous();
   Eigen::Matrix3Xd out(3, p.size(0));
   const float* d = p.data_ptr<float>();
   for (int64_t k = 0; k < p.size(0); ++k)
@@ -86,10 +75,10 @@ Eigen::Matrix3Xd Corrector::refinedSurface(const Eigen::Matrix3Xd& x) const {
 // ---------------------------------------------------------------------------------------------
 // Model folders
 
-void Corrector::save(const std::string& folder, const std::string& training) const {
-  const Impl& m = *impl_;
+void TorchCorrector::save(const std::string& folder, const std::string& training) const {
+  const TorchCorrector& m = *this;
   fs::create_directories(folder);
-  writeRestMesh((fs::path(folder) / "mesh.bin").string(), m.mesh);
+  writeRestMesh((fs::path(folder) / "mesh.bin").string(), m.rest);
   saveParameters(*m.net, (fs::path(folder) / "weights.pt").string());
   nlohmann::ordered_json c;
   c["format"] = "viscera model";
@@ -102,21 +91,21 @@ void Corrector::save(const std::string& folder, const std::string& training) con
                        {"width", m.arch.width},
                        {"maxCorrection", m.arch.maxCorrection},
                        {"parameters", parameters()}};
-  c["grid"] = {m.grid.nx, m.grid.ny, m.grid.nz};
+  c["grid"] = {m.shape.nx, m.shape.ny, m.shape.nz};
   c["viewDirection"] = {m.view.x(), m.view.y(), m.view.z()};
   c["observedFace"] = {{"axis", std::string(1, "xyz"[m.faceAxis])}, {"side", m.faceSide ? "max" : "min"}};
   c["normalisers"] = {{"cell", {m.cell.x(), m.cell.y(), m.cell.z()}}, {"velocityScale", m.velocityScale}};
   c["mesh"] = {{"file", "mesh.bin"},
-               {"nodes", m.mesh.points.cols()},
-               {"tetrahedra", m.mesh.tets.cols()},
-               {"fixedNodes", m.mesh.fixed.size()},
+               {"nodes", m.rest.points.cols()},
+               {"tetrahedra", m.rest.tets.cols()},
+               {"fixedNodes", m.rest.fixed.size()},
                {"hash", hex(m.hash)}};
-  c["units"] = m.units;
+  c["units"] = m.unitSystem;
   c["training"] = training.empty() ? nlohmann::ordered_json::object() : nlohmann::ordered_json::parse(training);
   writeFileAtomic((fs::path(folder) / "config.json").string(), c.dump(2) + "\n");
 }
 
-Corrector Corrector::load(const std::string& folder) {
+std::unique_ptr<Corrector::Impl> loadTorchCorrector(const std::string& folder) {
   const std::string configPath = (fs::path(folder) / "config.json").string();
   if (!fs::is_directory(folder)) throw Error(SourceLoc{folder}, "not a model folder (no such folder)");
   nlohmann::json c;
@@ -125,7 +114,7 @@ Corrector Corrector::load(const std::string& folder) {
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("not valid JSON: ") + e.what());
   }
-  std::unique_ptr<Impl> impl;
+  std::unique_ptr<TorchCorrector> impl;
   try {
     if (c.value("format", "") != "viscera model") throw Error(SourceLoc{configPath}, "format is not \"viscera model\"");
     if (c.value("kind", "") != "corrector")
@@ -145,28 +134,32 @@ Corrector Corrector::load(const std::string& folder) {
     const Eigen::Vector3d view(v.at(0).get<double>(), v.at(1).get<double>(), v.at(2).get<double>());
     if (!(view.norm() > 0)) throw Error(SourceLoc{configPath}, "viewDirection must not be zero");
     RestMesh mesh = readRestMesh((fs::path(folder) / c.at("mesh").at("file").get<std::string>()).string());
-    impl = std::make_unique<Impl>(std::move(mesh), grid, view, arch, c.at("units").get<std::string>());
+    try {
+      impl = std::make_unique<TorchCorrector>(std::move(mesh), grid, view, arch, c.at("units").get<std::string>());
+    } catch (const Error& e) {
+      throw Error(SourceLoc{configPath}, e.what());
+    }
     impl->velocityScale = c.at("normalisers").at("velocityScale").get<double>();
     if (!(impl->velocityScale > 0)) throw Error(SourceLoc{configPath}, "normalisers.velocityScale must be positive");
     const std::string stored = c.at("mesh").at("hash").get<std::string>();
     if (stored != hex(impl->hash))
       throw Error(SourceLoc{configPath}, "the mesh file's fingerprint is " + hex(impl->hash) + ", the configuration says " + stored +
                                              ": mesh.bin is not the mesh the model was trained on");
-    if (c.contains("training")) impl->training = c.at("training").dump();
+    if (c.contains("training")) impl->trainingRecord = c.at("training").dump();
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("malformed model configuration: ") + e.what());
   }
   loadParameters(*impl->net, (fs::path(folder) / "weights.pt").string(), configPath);
-  return Corrector(std::move(impl));
+  return impl;
 }
 
-void Corrector::checkMesh(const RestMesh& mesh, const std::string& what) const {
-  const Impl& m = *impl_;
+void TorchCorrector::checkMesh(const RestMesh& mesh, const std::string& what) const {
+  const TorchCorrector& m = *this;
   const std::uint64_t h = meshHash(mesh);
   if (h == m.hash) return;
   std::ostringstream s;
-  s << "the corrector was trained on a grid of " << m.grid.nx << " x " << m.grid.ny << " x " << m.grid.nz << " nodes ("
-    << m.mesh.tets.cols() << " tetrahedra, " << m.mesh.fixed.size() << " fixed nodes, fingerprint " << hex(m.hash) << "); "
+  s << "the corrector was trained on a grid of " << m.shape.nx << " x " << m.shape.ny << " x " << m.shape.nz << " nodes ("
+    << m.rest.tets.cols() << " tetrahedra, " << m.rest.fixed.size() << " fixed nodes, fingerprint " << hex(m.hash) << "); "
     << what << " has " << mesh.points.cols() << " nodes, " << mesh.tets.cols() << " tetrahedra and " << mesh.fixed.size()
     << " fixed nodes (fingerprint " << hex(h) << ")";
   throw Error(s.str());
@@ -175,7 +168,7 @@ void Corrector::checkMesh(const RestMesh& mesh, const std::string& what) const {
 // ---------------------------------------------------------------------------------------------
 // Training
 
-void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(const CorrectorEpochReport&)>& progress) {
+void torchTrainCorrector(const CorrectorTrainOptions& o, const std::function<void(const CorrectorEpochReport&)>& progress) {
   if (o.data.empty()) throw Error("corrector training: give at least one pair folder");
   if (o.out.empty()) throw Error("corrector training: --out is required");
   if (o.epochs < 1 || o.batch < 1) throw Error("--epochs and --batch must be at least 1");
@@ -186,7 +179,7 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
   if (o.resume && !fs::exists(checkpointDir / "state.json"))
     throw Error(SourceLoc{o.out}, "--resume: no checkpoint to resume from (" + (checkpointDir / "state.json").string() + " is missing)");
   if (!o.resume && fs::exists(out)) throw Error(SourceLoc{o.out}, "--out: already exists (nothing was changed); --resume continues its training");
-  setTorchThreads(o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+  torch::set_num_threads(o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
 
   std::vector<PairSet> sets;
   for (const std::string& d : o.data) sets.push_back(readPairSet(d));
@@ -221,19 +214,31 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
   int startEpoch = 1;
   double bestError = std::numeric_limits<double>::infinity(), lr = o.learningRate;
   if (o.resume) {
-    model.emplace(Corrector::load(checkpointDir.string()));
+    model.emplace(loadTorchCorrector(checkpointDir.string()));
     model->checkMesh(first.mesh, "the pairs " + first.folder);
-    const auto st = nlohmann::json::parse(readInputFile((checkpointDir / "state.json").string(), "checkpoint state"));
-    startEpoch = st.at("epoch").get<int>() + 1;
-    bestError = st.at("bestError").get<double>();
-    lr = st.at("learningRate").get<double>();
+    if (model->units() != first.units) throw Error(SourceLoc{first.folder}, "the pairs are in " + first.units + ", the model in " + model->units());
+    const std::string statePath = (checkpointDir / "state.json").string();
+    try {
+      const auto st = nlohmann::json::parse(readInputFile(statePath, "checkpoint state"));
+      startEpoch = st.at("epoch").get<int>() + 1;
+      if (st.contains("bestError")) bestError = st.at("bestError").get<double>();
+      lr = st.at("learningRate").get<double>();
+    } catch (const nlohmann::json::exception& e) {
+      throw Error(SourceLoc{statePath}, std::string("malformed checkpoint state: ") + e.what());
+    }
   } else {
-    model.emplace(first.mesh, first.grid, first.viewDirection, o.architecture, first.units, o.seed);
-    model->impl().velocityScale = std::max(1e-9, std::sqrt(speed2 / (train.size() + held.size())));
+    model.emplace(newTorchCorrector(first.mesh, first.grid, first.viewDirection, o.architecture, first.units, o.seed));
+    static_cast<TorchCorrector&>(model->impl()).velocityScale = std::max(1e-9, std::sqrt(speed2 / (train.size() + held.size())));
   }
-  Corrector::Impl& m = model->impl();
+  TorchCorrector& m = static_cast<TorchCorrector&>(model->impl());
   torch::optim::Adam optimizer(m.net->parameters(), torch::optim::AdamOptions(lr));
-  if (o.resume) torch::load(optimizer, (checkpointDir / "optimizer.pt").string());
+  if (o.resume) {
+    try {
+      torch::load(optimizer, (checkpointDir / "optimizer.pt").string());
+    } catch (const c10::Error& e) {
+      throw Error(SourceLoc{(checkpointDir / "optimizer.pt").string()}, std::string("cannot read the optimiser's state: ") + e.what_without_backtrace());
+    }
+  }
 
   // The loss of a batch: per frame the mean squared distance from its cloud to the refined surface.
   auto batchLoss = [&](const std::vector<const Frame*>& batch) {
@@ -265,11 +270,13 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
     after /= held.size();
   };
 
-  std::vector<const Frame*> order;
-  for (const Frame& f : train) order.push_back(&f);
+  std::vector<const Frame*> frames;
+  for (const Frame& f : train) frames.push_back(&f);
   for (int epoch = startEpoch; epoch <= o.epochs; ++epoch) {
     const auto e0 = std::chrono::steady_clock::now();
+    // Each epoch's order from the epoch's own seed: a resumed training draws the batches it would have.
     std::mt19937_64 rng(o.seed * 1000003ull + static_cast<std::uint64_t>(epoch));
+    std::vector<const Frame*> order = frames;
     std::shuffle(order.begin(), order.end(), rng);
     double sum = 0;
     int batches = 0;
@@ -294,7 +301,7 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
     nlohmann::ordered_json record;
     record["command"] = o.command;
     record["data"] = nlohmann::json::array();
-    for (const std::string& d : o.data) record["data"].push_back(fs::absolute(d).string());
+    for (const std::string& d : o.data) record["data"].push_back(d);  // as given: a model folder names no machine's paths
     record["trainingFrames"] = train.size();
     record["heldOutFrames"] = held.size();
     record["heldOutShare"] = o.validation;
@@ -313,7 +320,8 @@ void trainCorrector(const CorrectorTrainOptions& o, const std::function<void(con
     }
     model->save(checkpointDir.string(), record.dump());
     saveOptimizer(optimizer, (checkpointDir / "optimizer.pt").string());
-    const nlohmann::ordered_json st = {{"epoch", epoch}, {"bestError", bestError}, {"learningRate", rep.learningRate}};
+    nlohmann::ordered_json st = {{"epoch", epoch}, {"learningRate", rep.learningRate}};
+    if (std::isfinite(bestError)) st["bestError"] = bestError;
     writeFileAtomic((checkpointDir / "state.json").string(), st.dump(2) + "\n");
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
     if (progress) progress(rep);

@@ -1,4 +1,4 @@
-#include "learning/nn/MeshGraph.h"
+#include "learning/nn/torch/MeshGraph.h"
 
 #include <algorithm>
 #include <cstring>

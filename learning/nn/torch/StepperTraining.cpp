@@ -60,10 +60,9 @@ void setLr(torch::optim::Adam& opt, double lr) {
 
 }  // namespace
 
-void trainStepper(const StepperTrainOptions& o, const std::function<void(const EpochReport&)>& progress) {
+void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(const EpochReport&)>& progress) {
   checkOptions(o);
-  const auto started = std::chrono::steady_clock::now();
-  setTorchThreads(o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+  torch::set_num_threads(o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
 
   // The recordings: one mesh, one frame rate, one unit system.
   std::vector<RolloutSet> sets;
@@ -82,7 +81,7 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
   for (const RolloutSet& s : sets)
     for (const std::string& f : s.files) {
       rollouts.push_back(readRollout(f, nodes));
-      files.push_back(fs::absolute(f).string());
+      files.push_back((fs::path(s.folder).filename() / fs::path(f).filename()).string());
       if (rollouts.back().size() < 2) rollouts.pop_back(), files.pop_back();
     }
   if (rollouts.size() < 2) throw Error("stepper training needs at least two rollouts of two frames or more (one is held out)");
@@ -107,18 +106,25 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
   double bestError = std::numeric_limits<double>::infinity(), lr = o.learningRate;
   std::optional<Stepper> model;
   if (o.resume) {
-    model.emplace(Stepper::load(checkpointDir.string()));
+    model.emplace(loadTorchStepper(checkpointDir.string()));
     model->checkMesh(first.mesh, "the recording " + first.folder);
-    const nlohmann::json st = nlohmann::json::parse(readInputFile((checkpointDir / "state.json").string(), "checkpoint state"));
-    startEpoch = st.at("epoch").get<int>() + 1;
-    sinceBest = st.at("sinceBest").get<int>();
-    bestEpoch = st.at("bestEpoch").get<int>();
-    bestError = st.at("bestError").get<double>();
-    lr = st.at("learningRate").get<double>();
+    if (std::abs(model->framePeriod() * first.frameRate - 1) > 1e-9 || model->units() != first.units)
+      throw Error(SourceLoc{first.folder}, "the recording's frame rate or units are not the checkpoint model's");
+    const std::string statePath = (checkpointDir / "state.json").string();
+    try {
+      const nlohmann::json st = nlohmann::json::parse(readInputFile(statePath, "checkpoint state"));
+      startEpoch = st.at("epoch").get<int>() + 1;
+      sinceBest = st.at("sinceBest").get<int>();
+      bestEpoch = st.at("bestEpoch").get<int>();
+      if (st.contains("bestError")) bestError = st.at("bestError").get<double>();
+      lr = st.at("learningRate").get<double>();
+    } catch (const nlohmann::json::exception& e) {
+      throw Error(SourceLoc{statePath}, std::string("malformed checkpoint state: ") + e.what());
+    }
   } else {
-    model.emplace(first.mesh, o.architecture, norm, 1 / first.frameRate, first.units, o.seed);
+    model.emplace(newTorchStepper(first.mesh, o.architecture, norm, 1 / first.frameRate, first.units, o.seed));
   }
-  Stepper::Impl& m = model->impl();
+  TorchStepper& m = static_cast<TorchStepper&>(model->impl());
   torch::optim::Adam optimizer(m.net->parameters(), torch::optim::AdamOptions(lr));
   if (o.resume) {
     try {
@@ -182,14 +188,16 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
   nlohmann::ordered_json trainingRecord;
   for (int epoch = startEpoch; epoch <= o.epochs; ++epoch) {
     const auto e0 = std::chrono::steady_clock::now();
+    // Each epoch's order from the epoch's own seed: a resumed training draws the batches it would have.
     std::mt19937_64 rng(o.seed * 1000003ull + static_cast<std::uint64_t>(epoch));
-    std::shuffle(samples.begin(), samples.end(), rng);
+    std::vector<Sample> order = samples;
+    std::shuffle(order.begin(), order.end(), rng);
     const bool augment = epoch > o.warmup;
     m.net->train();
     double lossSum = 0;
     long batches = 0;
-    for (size_t s0 = 0; s0 < samples.size(); s0 += o.batch) {
-      const std::vector<Sample> batch(samples.begin() + s0, samples.begin() + std::min(samples.size(), s0 + o.batch));
+    for (size_t s0 = 0; s0 < order.size(); s0 += o.batch) {
+      const std::vector<Sample> batch(order.begin() + s0, order.begin() + std::min(order.size(), s0 + o.batch));
       std::vector<Eigen::Matrix3Xf> input(batch.size());
       std::vector<int> fromModel, depth;  // samples whose input is the model's own prediction, over `depth` frames
       for (size_t b = 0; b < batch.size(); ++b) {
@@ -269,7 +277,7 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
     trainingRecord = nlohmann::ordered_json::object();
     trainingRecord["command"] = command;
     trainingRecord["data"] = nlohmann::json::array();
-    for (const std::string& d : o.data) trainingRecord["data"].push_back(fs::absolute(d).string());
+    for (const std::string& d : o.data) trainingRecord["data"].push_back(d);  // as given: a model folder names no machine's paths
     trainingRecord["trainingRollouts"] = trained;
     trainingRecord["heldOutRollouts"] = std::vector<std::string>(files.begin() + trained, files.end());
     trainingRecord["samples"] = samples.size();
@@ -298,13 +306,12 @@ void trainStepper(const StepperTrainOptions& o, const std::function<void(const E
     trainingRecord["epoch"] = epoch;
     model->save(checkpointDir.string(), trainingRecord.dump());
     saveOptimizer(optimizer, (checkpointDir / "optimizer.pt").string());
-    nlohmann::ordered_json st = {{"epoch", epoch},        {"sinceBest", sinceBest},       {"bestEpoch", bestEpoch},
-                                 {"bestError", bestError}, {"learningRate", lrOf(optimizer)}};
+    nlohmann::ordered_json st = {{"epoch", epoch}, {"sinceBest", sinceBest}, {"bestEpoch", bestEpoch}, {"learningRate", lrOf(optimizer)}};
+    if (std::isfinite(bestError)) st["bestError"] = bestError;
     writeFileAtomic((checkpointDir / "state.json").string(), st.dump(2) + "\n");
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
     if (progress) progress(rep);
   }
-  (void)started;
 }
 
 }  // namespace viscera::learning

@@ -19,11 +19,6 @@ namespace viscera::learning {
 
 namespace fs = std::filesystem;
 
-bool torchAvailable() { return true; }
-
-void setTorchThreads(int threads) {
-  if (threads > 0) torch::set_num_threads(threads);
-}
 
 // ---------------------------------------------------------------------------------------------
 // Graph operators and layers
@@ -115,17 +110,18 @@ torch::Tensor GraphUNetImpl::forward(const torch::Tensor& X, const GraphOps& ops
 // ---------------------------------------------------------------------------------------------
 // The model
 
-Stepper::Impl::Impl(RestMesh m, const StepperArchitecture& a, const StepperNormalisers& n, double period, std::string u)
-    : mesh(std::move(m)), arch(a), norm(n), framePeriod(period), units(std::move(u)) {
+TorchStepper::TorchStepper(RestMesh m, const StepperArchitecture& a, const StepperNormalisers& n, double framePeriod, std::string u)
+    : rest(std::move(m)), arch(a), norm(n), period(framePeriod), unitSystem(std::move(u)) {
   if (a.width < 1 || a.width > 4096) throw Error("stepper width must be 1 to 4096, got " + std::to_string(a.width));
   if (!(a.maxStep > 0) || a.maxStep > 10) throw Error("stepper maxStep must be in (0, 10] cells");
-  hash = meshHash(mesh);
-  graph = buildMeshGraph(mesh, a.levels, a.matchings);
+  if (a.levels < 1 || a.levels > 8) throw Error("stepper levels must be 1 to 8, got " + std::to_string(a.levels));
+  hash = meshHash(rest);
+  graph = buildMeshGraph(rest, a.levels, a.matchings);
   ops = GraphOps::build(graph);
   net = GraphUNet(kStepperInputs, a.width, a.levels, 3);
-  const int nodes = static_cast<int>(mesh.points.cols());
+  const int nodes = static_cast<int>(rest.points.cols());
   fixed.assign(nodes, 0);
-  for (int f : mesh.fixed)
+  for (int f : rest.fixed)
     if (f >= 0 && f < nodes) fixed[f] = 1;
   movable = torch::ones({nodes, 1, 1});
   for (int i = 0; i < nodes; ++i)
@@ -133,10 +129,10 @@ Stepper::Impl::Impl(RestMesh m, const StepperArchitecture& a, const StepperNorma
   stepScale = torch::tensor({float(a.maxStep * n.cell[0]), float(a.maxStep * n.cell[1]), float(a.maxStep * n.cell[2])}).view({1, 1, 3});
   restFeatures = torch::empty({nodes, 1, kStepperInputs});
   const double far = std::numeric_limits<double>::infinity();
-  features(mesh.points, InstrumentInput{Eigen::Vector3d(far, far, far), Eigen::Vector3d::Zero()}, restFeatures, 0);
+  features(rest.points, InstrumentInput{Eigen::Vector3d(far, far, far), Eigen::Vector3d::Zero()}, restFeatures, 0);
 }
 
-torch::Tensor Stepper::Impl::anchor() const {
+torch::Tensor TorchStepper::anchor() const {
   if (torch::GradMode::is_enabled()) return net->forward(restFeatures, ops);
   std::int64_t version = 0;
   for (const auto& p : net->parameters()) version += p._version();
@@ -148,39 +144,27 @@ torch::Tensor Stepper::Impl::anchor() const {
   return anchor_;
 }
 
-torch::Tensor Stepper::Impl::update(const torch::Tensor& features) const {
+torch::Tensor TorchStepper::update(const torch::Tensor& features) const {
   torch::Tensor raw = net->forward(features, ops);
   if (arch.restAnchored) raw = raw - anchor();
   return stepScale * (2 * torch::sigmoid(raw) - 1) * movable;
 }
 
-Stepper::Stepper(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-Stepper::~Stepper() = default;
-Stepper::Stepper(Stepper&&) noexcept = default;
-Stepper& Stepper::operator=(Stepper&&) noexcept = default;
-
-Stepper::Stepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm, double framePeriod,
-                 const std::string& units, std::uint64_t seed) {
+std::unique_ptr<Stepper::Impl> newTorchStepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm,
+                                               double framePeriod, const std::string& units, std::uint64_t seed) {
   torch::manual_seed(seed);
-  impl_ = std::make_unique<Impl>(mesh, arch, norm, framePeriod, units);
+  return std::make_unique<TorchStepper>(mesh, arch, norm, framePeriod, units);
 }
 
-const RestMesh& Stepper::mesh() const { return impl_->mesh; }
-const StepperArchitecture& Stepper::architecture() const { return impl_->arch; }
-const StepperNormalisers& Stepper::normalisers() const { return impl_->norm; }
-double Stepper::framePeriod() const { return impl_->framePeriod; }
-const std::string& Stepper::units() const { return impl_->units; }
-const std::string& Stepper::training() const { return impl_->training; }
-
-std::int64_t Stepper::parameters() const {
+std::int64_t TorchStepper::parameters() const {
   std::int64_t n = 0;
-  for (const auto& p : impl_->net->parameters()) n += p.numel();
+  for (const auto& p : net->parameters()) n += p.numel();
   return n;
 }
 
-Eigen::Matrix3Xd Stepper::step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const {
-  const Impl& m = *impl_;
-  const auto n = m.mesh.points.cols();
+Eigen::Matrix3Xd TorchStepper::step(const Eigen::Matrix3Xd& x, const InstrumentInput& instrument) const {
+  const TorchStepper& m = *this;
+  const auto n = m.rest.points.cols();
   if (x.cols() != n) throw Error("stepper: " + std::to_string(x.cols()) + " nodes given, the model has " + std::to_string(n));
   torch::NoGradGuard noGrad;
   torch::Tensor f = torch::empty({n, 1, kStepperInputs});
@@ -271,10 +255,10 @@ void loadParameters(torch::nn::Module& net, const std::string& path, const std::
   }
 }
 
-void Stepper::save(const std::string& folder, const std::string& training) const {
-  const Impl& m = *impl_;
+void TorchStepper::save(const std::string& folder, const std::string& training) const {
+  const TorchStepper& m = *this;
   fs::create_directories(folder);
-  writeRestMesh((fs::path(folder) / "mesh.bin").string(), m.mesh);
+  writeRestMesh((fs::path(folder) / "mesh.bin").string(), m.rest);
   saveParameters(*m.net, (fs::path(folder) / "weights.pt").string());
   nlohmann::ordered_json c;
   c["format"] = "viscera model";
@@ -296,17 +280,17 @@ void Stepper::save(const std::string& folder, const std::string& training) const
                       {"reach", m.norm.reach},
                       {"velocityScale", m.norm.velocityScale}};
   c["mesh"] = {{"file", "mesh.bin"},
-               {"nodes", m.mesh.points.cols()},
-               {"tetrahedra", m.mesh.tets.cols()},
-               {"fixedNodes", m.mesh.fixed.size()},
+               {"nodes", m.rest.points.cols()},
+               {"tetrahedra", m.rest.tets.cols()},
+               {"fixedNodes", m.rest.fixed.size()},
                {"hash", hex(m.hash)}};
-  c["units"] = m.units;
-  c["framePeriod"] = m.framePeriod;
+  c["units"] = m.unitSystem;
+  c["framePeriod"] = m.period;
   c["training"] = training.empty() ? nlohmann::ordered_json::object() : nlohmann::ordered_json::parse(training);
   writeFileAtomic((fs::path(folder) / "config.json").string(), c.dump(2) + "\n");
 }
 
-Stepper Stepper::load(const std::string& folder) {
+std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
   const std::string configPath = (fs::path(folder) / "config.json").string();
   if (!fs::is_directory(folder)) throw Error(SourceLoc{folder}, "not a model folder (no such folder)");
   nlohmann::json c;
@@ -315,7 +299,7 @@ Stepper Stepper::load(const std::string& folder) {
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("not valid JSON: ") + e.what());
   }
-  std::unique_ptr<Impl> impl;
+  std::unique_ptr<TorchStepper> impl;
   try {
     if (c.value("format", "") != "viscera model") throw Error(SourceLoc{configPath}, "format is not \"viscera model\"");
     if (c.value("kind", "") != "stepper")
@@ -344,29 +328,33 @@ Stepper Stepper::load(const std::string& folder) {
     if (!(norm.cell.minCoeff() > 0) || !(norm.reach > 0) || !(norm.velocityScale > 0))
       throw Error(SourceLoc{configPath}, "normalisers must be positive (cell, reach, velocityScale)");
     RestMesh mesh = readRestMesh((fs::path(folder) / c.at("mesh").at("file").get<std::string>()).string());
-    impl = std::make_unique<Impl>(std::move(mesh), arch, norm, c.at("framePeriod").get<double>(), c.at("units").get<std::string>());
+    try {
+      impl = std::make_unique<TorchStepper>(std::move(mesh), arch, norm, c.at("framePeriod").get<double>(), c.at("units").get<std::string>());
+    } catch (const Error& e) {
+      throw Error(SourceLoc{configPath}, e.what());
+    }
     const std::string stored = c.at("mesh").at("hash").get<std::string>();
     if (stored != hex(impl->hash))
       throw Error(SourceLoc{configPath}, "the mesh file's fingerprint is " + hex(impl->hash) + ", the configuration says " +
                                              stored + ": mesh.bin is not the mesh the model was trained on");
-    if (c.contains("training")) impl->training = c.at("training").dump();
+    if (c.contains("training")) impl->trainingRecord = c.at("training").dump();
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("malformed model configuration: ") + e.what());
   }
   loadParameters(*impl->net, (fs::path(folder) / "weights.pt").string(), configPath);
-  return Stepper(std::move(impl));
+  return impl;
 }
 
-void Stepper::checkMesh(const RestMesh& mesh, const std::string& what) const {
-  const Impl& m = *impl_;
+void TorchStepper::checkMesh(const RestMesh& mesh, const std::string& what) const {
+  const TorchStepper& m = *this;
   const std::uint64_t h = meshHash(mesh);
   if (h == m.hash) return;
   std::ostringstream s;
-  s << "the model was trained on a mesh of " << m.mesh.points.cols() << " nodes, " << m.mesh.tets.cols() << " tetrahedra and "
-    << m.mesh.fixed.size() << " fixed nodes (fingerprint " << hex(m.hash) << "); " << what << " has " << mesh.points.cols()
+  s << "the model was trained on a mesh of " << m.rest.points.cols() << " nodes, " << m.rest.tets.cols() << " tetrahedra and "
+    << m.rest.fixed.size() << " fixed nodes (fingerprint " << hex(m.hash) << "); " << what << " has " << mesh.points.cols()
     << " nodes, " << mesh.tets.cols() << " tetrahedra and " << mesh.fixed.size() << " fixed nodes (fingerprint " << hex(h)
     << ")";
-  if (mesh.points.cols() == m.mesh.points.cols() && mesh.tets.cols() == m.mesh.tets.cols())
+  if (mesh.points.cols() == m.rest.points.cols() && mesh.tets.cols() == m.rest.tets.cols())
     s << ": same sizes, other rest positions, elements or fixed nodes";
   throw Error(s.str());
 }
@@ -375,7 +363,7 @@ void Stepper::checkMesh(const RestMesh& mesh, const std::string& what) const {
 
 namespace viscera::learning {
 
-GemmSpeed measureGemm(int m, int k, int n, int repeats) {
+GemmSpeed torchMeasureGemm(int m, int k, int n, int repeats) {
   torch::NoGradGuard noGrad;
   torch::manual_seed(1);
   const torch::Tensor a = torch::randn({m, k}), b = torch::randn({k, n});
