@@ -14,6 +14,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
+#include "learning/components/Binding.h"
 #include "learning/nn/Corrector.h"
 #include "observation/Tissue.h"
 
@@ -30,17 +31,7 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
 
   void init() override {
     state_ = &contextState(*this);
-    RestMesh mesh;
-    mesh.points = state_->x0;
-    const TetList* tets = obs::bodyTetrahedra(*state_);
-    if (!tets) throw error("the body '" + state_->name() + "' has no tetrahedra");
-    mesh.tets = *tets;
-    for (ProjectiveConstraint* c : scene().all<ProjectiveConstraint>()) {
-      if (auto* comp = dynamic_cast<Component*>(c)) scene().initComponent(*comp);
-      if (&c->mstate() == state_) mesh.fixed.insert(mesh.fixed.end(), c->fixedNodes().begin(), c->fixedNodes().end());
-    }
-    std::sort(mesh.fixed.begin(), mesh.fixed.end());
-    mesh.fixed.erase(std::unique(mesh.fixed.begin(), mesh.fixed.end()), mesh.fixed.end());
+    const RestMesh mesh = learning::boundRestMesh(*this, *state_);
     try {
       model_ = std::make_shared<const Corrector>(Corrector::load(scene().resolvePath(attrs_.str("model"))));
     } catch (const Error& e) {
@@ -54,17 +45,7 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
     if (model_->units() != scene().units().str())
       throw error("model", "the model works in " + model_->units() + ", the scene in " + scene().units().str());
     persistent_ = attrs_.boolean("persistent");
-    if (Component* c = linkedComponent("instrument")) {
-      sphere_ = dynamic_cast<SphereCollisionModel*>(c);
-      if (!sphere_) throw error("instrument", "'" + c->name() + "' is a " + c->typeName() + ", not a SphereCollisionModel");
-    } else {
-      const auto spheres = scene().all<SphereCollisionModel>();
-      if (spheres.size() != 1)
-        throw error("instrument", "the scene has " + std::to_string(spheres.size()) +
-                                      " SphereCollisionModels on instruments; link the one the model follows");
-      sphere_ = spheres.front();
-    }
-    scene().initComponent(*sphere_);
+    sphere_ = &learning::boundInstrument(*this);
   }
 
   // While a correction is shown: the positions the solver left and the corrected ones.

@@ -15,6 +15,7 @@
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
+#include "learning/components/Binding.h"
 #include "learning/nn/Stepper.h"
 #include "observation/Tissue.h"
 
@@ -31,17 +32,7 @@ class LearnedStepper : public Component, public OdeSolver {
 
   void init() override {
     state_ = &contextState(*this);
-    RestMesh mesh;
-    mesh.points = state_->x0;
-    const TetList* tets = obs::bodyTetrahedra(*state_);
-    if (!tets) throw error("the body '" + state_->name() + "' has no tetrahedra; the learned stepper works on a tetrahedral mesh");
-    mesh.tets = *tets;
-    for (ProjectiveConstraint* c : scene().all<ProjectiveConstraint>()) {
-      if (auto* comp = dynamic_cast<Component*>(c)) scene().initComponent(*comp);
-      if (&c->mstate() == state_) mesh.fixed.insert(mesh.fixed.end(), c->fixedNodes().begin(), c->fixedNodes().end());
-    }
-    std::sort(mesh.fixed.begin(), mesh.fixed.end());
-    mesh.fixed.erase(std::unique(mesh.fixed.begin(), mesh.fixed.end()), mesh.fixed.end());
+    const RestMesh mesh = learning::boundRestMesh(*this, *state_);
 
     const std::string folder = scene().resolvePath(attrs_.str("model"));
     try {
@@ -62,17 +53,7 @@ class LearnedStepper : public Component, public OdeSolver {
                                " per unit time); the scene's dt is " + formatNumber(scene().dt()) +
                                ": set the root's dt to the model's frame period");
 
-    if (Component* c = linkedComponent("instrument")) {
-      sphere_ = dynamic_cast<SphereCollisionModel*>(c);
-      if (!sphere_) throw error("instrument", "'" + c->name() + "' is a " + c->typeName() + ", not a SphereCollisionModel");
-    } else {
-      const auto spheres = scene().all<SphereCollisionModel>();
-      if (spheres.size() != 1)
-        throw error("instrument", "the scene has " + std::to_string(spheres.size()) +
-                                      " SphereCollisionModels on instruments; link the one the model follows");
-      sphere_ = spheres.front();
-    }
-    scene().initComponent(*sphere_);
+    sphere_ = &learning::boundInstrument(*this);
   }
 
   std::optional<Diverged> step(State& st, double t, double dt, int stepIndex) const override {

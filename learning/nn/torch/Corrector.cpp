@@ -13,25 +13,13 @@
 
 #include "core/Error.h"
 #include "core/Files.h"
+#include "learning/nn/torch/ModelFolder.h"
 #include "learning/nn/torch/MeshGraph.h"
 #include "learning/nn/torch/GridUNet.h"
 
 namespace viscera::learning {
 
 namespace fs = std::filesystem;
-
-namespace {
-
-std::string hex(std::uint64_t v) {
-  std::ostringstream s;
-  s << std::hex;
-  s.width(16);
-  s.fill('0');
-  s << v;
-  return s.str();
-}
-
-}  // namespace
 
 torch::Tensor chamferLoss(const torch::Tensor& cloud, const torch::Tensor& surface) {
   return std::get<0>(torch::cdist(cloud, surface).pow(2).min(1)).mean();
@@ -95,30 +83,17 @@ void TorchCorrector::save(const std::string& folder, const std::string& training
   c["viewDirection"] = {m.view.x(), m.view.y(), m.view.z()};
   c["observedFace"] = {{"axis", std::string(1, "xyz"[m.faceAxis])}, {"side", m.faceSide ? "max" : "min"}};
   c["normalisers"] = {{"cell", {m.cell.x(), m.cell.y(), m.cell.z()}}, {"velocityScale", m.velocityScale}};
-  c["mesh"] = {{"file", "mesh.bin"},
-               {"nodes", m.rest.points.cols()},
-               {"tetrahedra", m.rest.tets.cols()},
-               {"fixedNodes", m.rest.fixed.size()},
-               {"hash", hex(m.hash)}};
+  c["mesh"] = meshEntry(m.rest, m.hash);
   c["units"] = m.unitSystem;
   c["training"] = training.empty() ? nlohmann::ordered_json::object() : nlohmann::ordered_json::parse(training);
   writeFileAtomic((fs::path(folder) / "config.json").string(), c.dump(2) + "\n");
 }
 
 std::unique_ptr<Corrector::Impl> loadTorchCorrector(const std::string& folder) {
-  const std::string configPath = (fs::path(folder) / "config.json").string();
-  if (!fs::is_directory(folder)) throw Error(SourceLoc{folder}, "not a model folder (no such folder)");
-  nlohmann::json c;
-  try {
-    c = nlohmann::json::parse(readInputFile(configPath, "model configuration"));
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(SourceLoc{configPath}, std::string("not valid JSON: ") + e.what());
-  }
+  std::string configPath;
+  const nlohmann::json c = readModelConfig(folder, "corrector", configPath);
   std::unique_ptr<TorchCorrector> impl;
   try {
-    if (c.value("format", "") != "viscera model") throw Error(SourceLoc{configPath}, "format is not \"viscera model\"");
-    if (c.value("kind", "") != "corrector")
-      throw Error(SourceLoc{configPath}, "is a " + c.value("kind", std::string("?")) + " model, not a corrector");
     const auto& a = c.at("architecture");
     if (a.at("inputs").get<int>() != kCorrectorInputs || a.at("poseInputs").get<int>() != kPoseInputs)
       throw Error(SourceLoc{configPath}, "the network's inputs are not this version's corrector's");
@@ -141,10 +116,7 @@ std::unique_ptr<Corrector::Impl> loadTorchCorrector(const std::string& folder) {
     }
     impl->velocityScale = c.at("normalisers").at("velocityScale").get<double>();
     if (!(impl->velocityScale > 0)) throw Error(SourceLoc{configPath}, "normalisers.velocityScale must be positive");
-    const std::string stored = c.at("mesh").at("hash").get<std::string>();
-    if (stored != hex(impl->hash))
-      throw Error(SourceLoc{configPath}, "the mesh file's fingerprint is " + hex(impl->hash) + ", the configuration says " + stored +
-                                             ": mesh.bin is not the mesh the model was trained on");
+    checkMeshEntry(c, impl->hash, configPath);
     if (c.contains("training")) impl->trainingRecord = c.at("training").dump();
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("malformed model configuration: ") + e.what());
@@ -159,9 +131,9 @@ void TorchCorrector::checkMesh(const RestMesh& mesh, const std::string& what) co
   if (h == m.hash) return;
   std::ostringstream s;
   s << "the corrector was trained on a grid of " << m.shape.nx << " x " << m.shape.ny << " x " << m.shape.nz << " nodes ("
-    << m.rest.tets.cols() << " tetrahedra, " << m.rest.fixed.size() << " fixed nodes, fingerprint " << hex(m.hash) << "); "
+    << m.rest.tets.cols() << " tetrahedra, " << m.rest.fixed.size() << " fixed nodes, fingerprint " << hexFingerprint(m.hash) << "); "
     << what << " has " << mesh.points.cols() << " nodes, " << mesh.tets.cols() << " tetrahedra and " << mesh.fixed.size()
-    << " fixed nodes (fingerprint " << hex(h) << ")";
+    << " fixed nodes (fingerprint " << hexFingerprint(h) << ")";
   throw Error(s.str());
 }
 

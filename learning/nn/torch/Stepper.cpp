@@ -13,6 +13,7 @@
 
 #include "core/Error.h"
 #include "core/Files.h"
+#include "learning/nn/torch/ModelFolder.h"
 #include "learning/nn/torch/GraphUNet.h"
 
 namespace viscera::learning {
@@ -182,12 +183,6 @@ Eigen::Matrix3Xd TorchStepper::step(const Eigen::Matrix3Xd& x, const InstrumentI
 
 namespace {
 
-std::string hex(std::uint64_t v) {
-  std::ostringstream s;
-  s << std::hex << std::setw(16) << std::setfill('0') << v;
-  return s.str();
-}
-
 nlohmann::json vec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 
 Eigen::Vector3d vec(const nlohmann::json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
@@ -279,11 +274,7 @@ void TorchStepper::save(const std::string& folder, const std::string& training) 
                       {"boxMax", vec(m.norm.boxMax)},
                       {"reach", m.norm.reach},
                       {"velocityScale", m.norm.velocityScale}};
-  c["mesh"] = {{"file", "mesh.bin"},
-               {"nodes", m.rest.points.cols()},
-               {"tetrahedra", m.rest.tets.cols()},
-               {"fixedNodes", m.rest.fixed.size()},
-               {"hash", hex(m.hash)}};
+  c["mesh"] = meshEntry(m.rest, m.hash);
   c["units"] = m.unitSystem;
   c["framePeriod"] = m.period;
   c["training"] = training.empty() ? nlohmann::ordered_json::object() : nlohmann::ordered_json::parse(training);
@@ -291,19 +282,10 @@ void TorchStepper::save(const std::string& folder, const std::string& training) 
 }
 
 std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
-  const std::string configPath = (fs::path(folder) / "config.json").string();
-  if (!fs::is_directory(folder)) throw Error(SourceLoc{folder}, "not a model folder (no such folder)");
-  nlohmann::json c;
-  try {
-    c = nlohmann::json::parse(readInputFile(configPath, "model configuration"));
-  } catch (const nlohmann::json::exception& e) {
-    throw Error(SourceLoc{configPath}, std::string("not valid JSON: ") + e.what());
-  }
+  std::string configPath;
+  const nlohmann::json c = readModelConfig(folder, "stepper", configPath);
   std::unique_ptr<TorchStepper> impl;
   try {
-    if (c.value("format", "") != "viscera model") throw Error(SourceLoc{configPath}, "format is not \"viscera model\"");
-    if (c.value("kind", "") != "stepper")
-      throw Error(SourceLoc{configPath}, "is a " + c.value("kind", std::string("?")) + " model, not a stepper");
     const auto& a = c.at("architecture");
     if (a.at("inputs").get<int>() != kStepperInputs)
       throw Error(SourceLoc{configPath}, "the network takes " + std::to_string(a.at("inputs").get<int>()) +
@@ -333,10 +315,7 @@ std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
     } catch (const Error& e) {
       throw Error(SourceLoc{configPath}, e.what());
     }
-    const std::string stored = c.at("mesh").at("hash").get<std::string>();
-    if (stored != hex(impl->hash))
-      throw Error(SourceLoc{configPath}, "the mesh file's fingerprint is " + hex(impl->hash) + ", the configuration says " +
-                                             stored + ": mesh.bin is not the mesh the model was trained on");
+    checkMeshEntry(c, impl->hash, configPath);
     if (c.contains("training")) impl->trainingRecord = c.at("training").dump();
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("malformed model configuration: ") + e.what());
@@ -351,8 +330,8 @@ void TorchStepper::checkMesh(const RestMesh& mesh, const std::string& what) cons
   if (h == m.hash) return;
   std::ostringstream s;
   s << "the model was trained on a mesh of " << m.rest.points.cols() << " nodes, " << m.rest.tets.cols() << " tetrahedra and "
-    << m.rest.fixed.size() << " fixed nodes (fingerprint " << hex(m.hash) << "); " << what << " has " << mesh.points.cols()
-    << " nodes, " << mesh.tets.cols() << " tetrahedra and " << mesh.fixed.size() << " fixed nodes (fingerprint " << hex(h)
+    << m.rest.fixed.size() << " fixed nodes (fingerprint " << hexFingerprint(m.hash) << "); " << what << " has " << mesh.points.cols()
+    << " nodes, " << mesh.tets.cols() << " tetrahedra and " << mesh.fixed.size() << " fixed nodes (fingerprint " << hexFingerprint(h)
     << ")";
   if (mesh.points.cols() == m.rest.points.cols() && mesh.tets.cols() == m.rest.tets.cols())
     s << ": same sizes, other rest positions, elements or fixed nodes";
