@@ -6,6 +6,7 @@
 #include "engine/Roles.h"
 #include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/Placement.h"
 #include "observation/Tissue.h"
 
 namespace viscera::learning {
@@ -39,6 +40,15 @@ SphereCollisionModel& boundInstrument(Component& c) {
   }
   c.scene().initComponent(*sphere);
   return *sphere;
+}
+
+std::string resolvedModelFolder(const Component& c) { return c.scene().resolvePath(c.attrs().str("model")); }
+
+Error modelFileError(const Error& e, const Component& c) { return fileErrorFor(e, c, "model"); }
+
+void checkModelUnits(const Component& c, const std::string& units) {
+  if (units != c.scene().units().str())
+    throw c.error("model", "the model works in " + units + ", the scene in " + c.scene().units().str());
 }
 
 }  // namespace viscera::learning

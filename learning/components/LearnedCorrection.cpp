@@ -32,18 +32,7 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
   void init() override {
     state_ = &contextState(*this);
     const RestMesh mesh = learning::boundRestMesh(*this, *state_);
-    try {
-      model_ = std::make_shared<const Corrector>(Corrector::load(scene().resolvePath(attrs_.str("model"))));
-    } catch (const Error& e) {
-      throw fileErrorFor(e, *this, "model");
-    }
-    try {
-      model_->checkMesh(mesh, "the body '" + state_->name() + "'");
-    } catch (const Error& e) {
-      throw error("model", e.what());
-    }
-    if (model_->units() != scene().units().str())
-      throw error("model", "the model works in " + model_->units() + ", the scene in " + scene().units().str());
+    model_ = learning::boundModel<Corrector>(*this, mesh, state_->name());
     persistent_ = attrs_.boolean("persistent");
     sphere_ = &learning::boundInstrument(*this);
   }

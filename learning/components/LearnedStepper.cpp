@@ -33,20 +33,7 @@ class LearnedStepper : public Component, public OdeSolver {
   void init() override {
     state_ = &contextState(*this);
     const RestMesh mesh = learning::boundRestMesh(*this, *state_);
-
-    const std::string folder = scene().resolvePath(attrs_.str("model"));
-    try {
-      model_ = std::make_shared<const Stepper>(Stepper::load(folder));
-    } catch (const Error& e) {
-      throw fileErrorFor(e, *this, "model");
-    }
-    try {
-      model_->checkMesh(mesh, "the body '" + state_->name() + "'");
-    } catch (const Error& e) {
-      throw error("model", e.what());
-    }
-    if (model_->units() != scene().units().str())
-      throw error("model", "the model works in " + model_->units() + ", the scene in " + scene().units().str());
+    model_ = learning::boundModel<Stepper>(*this, mesh, state_->name());
     const double period = model_->framePeriod();
     if (std::abs(scene().dt() / period - 1) > 1e-6)
       throw error("model", "the model steps frames of " + formatNumber(period) + " (" + formatNumber(1 / period) +
