@@ -90,7 +90,7 @@ class LearnedCorrection : public Component, public Correction, public Stateful {
 void registerLearnedCorrection(Registry& r) {
   ComponentSpec s;
   s.name = "LearnedCorrection";
-  s.category = "solver";
+  s.category = "correction";
   s.doc = "A learned correction (U-Net over the body's grid, dissertation 4.3) applied after each step's solve: mappings, "
           "exporters, cameras and scores see the corrected body. The model folder (viscera learn train on correction "
           "pairs) must have been trained on this body's grid and fixed nodes, in the scene's units. By default the next "
