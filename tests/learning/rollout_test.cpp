@@ -17,30 +17,19 @@
 #include "learning/Record.h"
 #include "learning/data/Rollout.h"
 #include "study/Replay.h"
+#include "tests/support/ErrorOf.h"
+#include "tests/support/FileText.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera;
 using namespace viscera::learning;
+using viscera::test_support::errorOf;
+using viscera::test_support::slurp;
+using viscera::test_support::spit;
 using viscera::test_support::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-void spit(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
-
-template <class F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 RestMesh smallMesh() {
   RestMesh m;

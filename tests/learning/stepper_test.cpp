@@ -16,10 +16,15 @@
 #include "io/scene/SceneReader.h"
 #include "learning/Record.h"
 #include "learning/nn/Stepper.h"
+#include "tests/support/ErrorOf.h"
+#include "tests/support/FileText.h"
 #include "tests/support/TempDir.h"
 
 using namespace viscera;
 using namespace viscera::learning;
+using viscera::test_support::errorOf;
+using viscera::test_support::slurp;
+using viscera::test_support::spit;
 using viscera::test_support::TempDir;
 namespace fs = std::filesystem;
 
@@ -27,22 +32,6 @@ namespace {
 
 const std::string kCoarse = std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom_coarse.xml";
 const std::string kPalpation = std::string(VISCERA_SOURCE_DIR) + "/scenes/palpation_80s.csv";
-
-template <class F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-void spit(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
 
 StepperNormalisers normalisersOf(const RestMesh& mesh) {
   StepperNormalisers n;
