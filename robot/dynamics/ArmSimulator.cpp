@@ -1,0 +1,308 @@
+#include "robot/dynamics/ArmSimulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <string>
+
+#include "core/Error.h"
+
+namespace viscera::robot {
+
+ArmSimulationOptions psmSimulationDefaults() {
+  ArmSimulationOptions o;
+  o.gains.kp = {40, 40, 2000, 0.3, 0.3, 0.3};
+  o.gains.kd = {2.5, 2.5, 60, 0.012, 0.012, 0.012};
+  o.gains.ki = {40, 40, 2000, 0.3, 0.3, 0.3};
+  // Cable transmissions: a little play in the outer joints' readings; dVRK-like noise levels.
+  o.measurement.backlash = {2e-4, 2e-4, 2e-5, 1e-3, 1e-3, 1e-3};
+  o.measurement.positionNoise = {2e-5, 2e-5, 2e-6, 1e-4, 1e-4, 1e-4};
+  o.measurement.velocityNoise = {2e-3, 2e-3, 2e-4, 1e-2, 1e-2, 1e-2};
+  o.measurement.effortNoise = {0.01, 0.01, 0.05, 5e-4, 5e-4, 5e-4};
+  o.excitation.lower = {-0.9, -0.6, 0.08, -2.0, -1.0, -1.0};
+  o.excitation.upper = {0.9, 0.6, 0.22, 2.0, 1.0, 1.0};
+  return o;
+}
+
+namespace {
+
+// Minimum-jerk blend 0 -> 1 and its derivative with respect to the normalised time.
+double minJerk(double s) { return s * s * s * (10 + s * (-15 + 6 * s)); }
+double minJerkRate(double s) { return 30 * s * s * (1 - s) * (1 - s); }
+
+struct Segment {
+  double start = 0, duration = 1;
+  Eigen::VectorXd from, to;
+};
+
+// The reference: segments between waypoints, plus tremor.
+class Reference {
+ public:
+  Reference(const ArmDynamics& arm, const ArmSimulationOptions& o, std::mt19937_64& rng) : n_(arm.dof()) {
+    const Excitation& e = o.excitation;
+    std::uniform_real_distribution<double> u01(0, 1);
+    auto draw = [&] {
+      Eigen::VectorXd q(n_);
+      for (int i = 0; i < n_; ++i) q[i] = e.lower[i] + (e.upper[i] - e.lower[i]) * u01(rng);
+      return q;
+    };
+    auto duration = [&] { return e.minSegment + (e.maxSegment - e.minSegment) * u01(rng); };
+    const Phantom& ph = o.phantom;
+    // Insertion at which the tip touches the phantom, for the yaw/pitch/... of q (joint 3 moves the
+    // tip along the shaft, so the height above the surface is linear in it).
+    auto surfaceInsertion = [&](const Eigen::VectorXd& q, double& along) {
+      const Eigen::Vector3d tip = arm.chain().tipPose(q).translation();
+      Eigen::VectorXd q2 = q;
+      q2[2] += 0.01;
+      const Eigen::Vector3d shaft = (arm.chain().tipPose(q2).translation() - tip) / 0.01;
+      along = shaft.dot(ph.normal);  // height change per metre of insertion (< 0 when pointing in)
+      const double height = (tip - ph.point).dot(ph.normal);
+      return q[2] - height / along;
+    };
+    constexpr double clearance = 0.005;  // m above the surface for free motion
+    Eigen::VectorXd q = draw();
+    double along = 0;
+    if (ph.enabled) q[2] = std::min(q[2], surfaceInsertion(q, along) - clearance / std::max(-along, 0.3));
+    double t = 0;
+    const double end = o.duration + 1;
+    auto add = [&](const Eigen::VectorXd& to, double d) {
+      segments_.push_back({t, d, q, to});
+      t += d;
+      q = to;
+    };
+    while (t < end) {
+      if (ph.enabled && u01(rng) < e.palpationShare) {
+        // Palpation: above a point, down into the surface along the shaft, hold, up again.
+        Eigen::VectorXd above = draw();
+        const double touch = surfaceInsertion(above, along);
+        if (!(along < -0.3)) continue;  // too grazing: draw again
+        above[2] = touch - clearance / -along;
+        Eigen::VectorXd pressed = above;
+        pressed[2] = touch + (e.minDepth + (e.maxDepth - e.minDepth) * u01(rng)) / -along;
+        if (above[2] < arm.chain().joints()[2].lower || pressed[2] > arm.chain().joints()[2].upper) continue;
+        add(above, duration());
+        add(pressed, 0.4 + 0.8 * u01(rng));
+        add(pressed, 0.2 + 0.8 * u01(rng));
+        add(above, 0.4 + 0.8 * u01(rng));
+      } else {
+        Eigen::VectorXd to = draw();
+        if (ph.enabled) to[2] = std::min(to[2], surfaceInsertion(to, along) - clearance / std::max(-along, 0.3));
+        add(to, duration());
+      }
+    }
+    // Tremor: three sines per joint, 0.5 to 4 Hz.
+    tremor_.resize(n_);
+    for (int i = 0; i < n_; ++i)
+      for (int k = 0; k < 3; ++k)
+        tremor_[i].push_back({e.tremor * (e.upper[i] - e.lower[i]) / 3, 2 * std::numbers::pi * (0.5 + 3.5 * u01(rng)),
+                              2 * std::numbers::pi * u01(rng)});
+  }
+
+  // Reference position and velocity at time t.
+  void at(double t, Eigen::VectorXd& q, Eigen::VectorXd& qd) {
+    while (current_ + 1 < segments_.size() && t >= segments_[current_ + 1].start) ++current_;
+    const Segment& s = segments_[current_];
+    const double x = std::clamp((t - s.start) / s.duration, 0.0, 1.0);
+    q = s.from + minJerk(x) * (s.to - s.from);
+    qd = (minJerkRate(x) / s.duration) * (s.to - s.from);
+    for (int i = 0; i < n_; ++i)
+      for (const Sine& w : tremor_[i]) {
+        q[i] += w.amplitude * std::sin(w.omega * t + w.phase);
+        qd[i] += w.amplitude * w.omega * std::cos(w.omega * t + w.phase);
+      }
+  }
+
+ private:
+  struct Sine {
+    double amplitude, omega, phase;
+  };
+  int n_;
+  std::vector<Segment> segments_;
+  size_t current_ = 0;
+  std::vector<std::vector<Sine>> tremor_;
+};
+
+void requireSize(const std::vector<double>& v, int n, const char* what) {
+  if (static_cast<int>(v.size()) != n)
+    throw Error(std::string("arm simulation: ") + what + " needs one value per joint (" + std::to_string(n) + ")");
+  for (double x : v)
+    if (!std::isfinite(x)) throw Error(std::string("arm simulation: ") + what + " is not finite");
+}
+
+// Environment efforts at a state: the body wall's and seal's share (trocar) and J^T F_ext with the
+// phantom's wrench, plus the derivatives the implicit step needs (diagonal, per joint velocity).
+struct Environment {
+  Eigen::VectorXd trocar, external;             // efforts
+  Eigen::VectorXd trocarSlope, externalSlope;  // d effort_i / d qd_i
+  Vector6d wrench = Vector6d::Zero();
+};
+
+Environment environment(const ArmDynamics& arm, const ArmSimulationOptions& o, const Eigen::VectorXd& q,
+                        const Eigen::VectorXd& qd) {
+  const int n = arm.dof();
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
+  Environment env{zero, zero, zero, zero};
+  if (!o.trocar.enabled && !o.phantom.enabled && !o.seal.enabled) return env;
+  const ChainPose pose = arm.chain().forwardKinematics(q);
+  Jacobian J(6, n);
+  arm.chain().spatialJacobian(pose.frames, pose.tip, J);
+  if (o.trocar.enabled) {
+    // The shaft is the z axis of joint 3's frame; the wall acts at its point nearest the anchor.
+    const Eigen::Vector3d axis = pose.frames[2].linear().col(2);
+    const Eigen::Vector3d origin = pose.frames[2].translation();
+    const Eigen::Vector3d point = origin + axis * axis.dot(o.trocar.anchor - origin);
+    // Velocity of that point from joints 1-3 (the roll and wrist do not move the shaft's axis).
+    Eigen::Matrix<double, 3, Eigen::Dynamic> Jp = Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, n);
+    for (int i = 0; i < 3; ++i) {
+      const Eigen::Vector3d z = pose.frames[i].linear().col(2);
+      Jp.col(i) = arm.chain().joints()[i].type == JointType::Revolute ? z.cross(point - pose.frames[i].translation()) : z;
+    }
+    const Eigen::Matrix3d lateral = Eigen::Matrix3d::Identity() - axis * axis.transpose();
+    const Eigen::Vector3d d = point - o.trocar.anchor;  // already lateral
+    const Eigen::Vector3d v = lateral * (Jp * qd);
+    const double r = d.norm();
+    const Eigen::Vector3d onShaft = -(o.trocar.stiffness + o.trocar.cubic * r * r) * d - o.trocar.damping * v;
+    env.trocar -= Jp.transpose() * onShaft;  // the motor supplies the opposite
+    env.trocarSlope += (o.trocar.damping * (Jp.transpose() * lateral * Jp)).diagonal();
+  }
+  if (o.seal.enabled) {
+    env.trocar[2] += o.seal.axial.effort(qd[2]);
+    env.trocar[3] += o.seal.roll.effort(qd[3]);
+    env.trocarSlope[2] += o.seal.axial.slope(qd[2]);
+    env.trocarSlope[3] += o.seal.roll.slope(qd[3]);
+  }
+  if (o.phantom.enabled) {
+    const Phantom& ph = o.phantom;
+    const double depth = -(pose.tip.translation() - ph.point).dot(ph.normal);
+    if (depth > 0) {
+      const Eigen::Vector3d v = (J * qd).head<3>();
+      const double vn = v.dot(ph.normal);
+      const double normal = std::max(0.0, ph.stiffness * depth - ph.damping * vn);
+      const Eigen::Vector3d vt = v - vn * ph.normal;
+      const double speed = vt.norm();
+      constexpr double slip = 1e-3;  // m/s, regularisation of Coulomb friction
+      Eigen::Vector3d onTool = normal * ph.normal;
+      if (speed > 0) onTool -= ph.friction * normal * std::tanh(speed / slip) * vt / speed;
+      env.wrench.head<3>() = -onTool;  // the tool's wrench on the phantom, about the tip
+      env.external = J.transpose() * env.wrench;
+      const Eigen::Matrix<double, 3, Eigen::Dynamic> Jv = J.topRows<3>();
+      env.externalSlope += (ph.damping * (Jv.transpose() * ph.normal * ph.normal.transpose() * Jv)).diagonal();
+    }
+  }
+  return env;
+}
+
+}  // namespace
+
+ArmRecording simulateArm(const ArmDynamics& arm, const ArmSimulationOptions& o,
+                         const std::function<void(double)>& progress) {
+  const int n = arm.dof();
+  if (!(o.duration > 0) || !(o.rate > 0) || o.substeps < 1 || !std::isfinite(o.duration * o.rate))
+    throw Error("arm simulation: duration, rate and substeps must be positive");
+  requireSize(o.gains.kp, n, "gains.kp");
+  requireSize(o.gains.kd, n, "gains.kd");
+  requireSize(o.gains.ki, n, "gains.ki");
+  requireSize(o.measurement.backlash, n, "measurement.backlash");
+  requireSize(o.measurement.positionNoise, n, "measurement.positionNoise");
+  requireSize(o.measurement.velocityNoise, n, "measurement.velocityNoise");
+  requireSize(o.measurement.effortNoise, n, "measurement.effortNoise");
+  requireSize(o.excitation.lower, n, "excitation.lower");
+  requireSize(o.excitation.upper, n, "excitation.upper");
+  for (int i = 0; i < n; ++i) {
+    const DhJoint& j = arm.chain().joints()[i];
+    if (!(o.excitation.lower[i] <= o.excitation.upper[i]) || o.excitation.lower[i] < j.lower || o.excitation.upper[i] > j.upper)
+      throw Error("arm simulation: the excitation range of joint " + std::to_string(i + 1) + " is not within its limits [" +
+                  std::to_string(j.lower) + ", " + std::to_string(j.upper) + "]");
+  }
+  if (o.phantom.enabled && std::abs(o.phantom.normal.norm() - 1) > 1e-6)
+    throw Error("arm simulation: the phantom's normal is not a unit vector");
+
+  std::mt19937_64 rng(o.seed);
+  Reference reference(arm, o, rng);
+  std::normal_distribution<double> gauss(0, 1);
+
+  const int samples = static_cast<int>(std::floor(o.duration * o.rate)) + 1;
+  ArmRecording rec;
+  rec.dof = n;
+  rec.t.resize(samples);
+  for (Eigen::MatrixXd* m : {&rec.q, &rec.qd, &rec.effort, &rec.qTrue, &rec.qdTrue, &rec.freeEffort, &rec.trocarEffort,
+                             &rec.externalEffort})
+    m->resize(samples, n);
+  rec.wrench.resize(samples, 6);
+  rec.jacobian.resize(samples, 6 * n);
+  rec.tip.resize(samples, 3);
+
+  const Eigen::Map<const Eigen::VectorXd> kp(o.gains.kp.data(), n), kd(o.gains.kd.data(), n), ki(o.gains.ki.data(), n);
+  Eigen::VectorXd q(n), qd = Eigen::VectorXd::Zero(n), integral = Eigen::VectorXd::Zero(n);
+  Eigen::VectorXd qRef(n), qdRef(n);
+  reference.at(0, qRef, qdRef);
+  q = qRef;
+  Eigen::VectorXd reading = q;  // the play operator's output
+  // Start at rest with the integral term already holding the arm against gravity.
+  const Eigen::VectorXd hold = arm.bias(q, qd);
+  for (int i = 0; i < n; ++i) integral[i] = ki[i] > 0 ? hold[i] / ki[i] : 0;
+  // The efforts of the last step, split as in Eq. 2.4; at t = 0 the arm is at rest.
+  Eigen::VectorXd free = arm.inverseDynamics(q, qd, Eigen::VectorXd::Zero(n));
+  Environment env = environment(arm, o, q, qd);
+  Eigen::VectorXd trocar = env.trocar, external = env.external;
+  const double h = 1 / (o.rate * o.substeps);
+
+  for (int s = 0; s < samples; ++s) {
+    const double t = s / o.rate;
+    for (int k = 0; s > 0 && k < o.substeps; ++k) {
+      const double tk = t - (o.substeps - 1 - k) * h;
+      reference.at(tk, qRef, qdRef);
+      const Eigen::MatrixXd M = arm.massMatrix(q);
+      const Eigen::VectorXd bias = arm.bias(q, qd);
+      env = environment(arm, o, q, qd);
+      Eigen::VectorXd friction(n), slope(n);
+      for (int i = 0; i < n; ++i) {
+        friction[i] = arm.friction()[i].effort(qd[i]);
+        slope[i] = arm.friction()[i].slope(qd[i]);
+      }
+      // Linearly implicit Euler: the controller, friction and the environment's damping at the new
+      // velocity (through their derivatives at the old one), the controller at q + h qd_new.
+      const Eigen::VectorXd e = qRef - q;
+      integral += h * e;
+      const Eigen::VectorXd pid = kp.cwiseProduct(e - h * qd) + kd.cwiseProduct(qdRef - qd) + ki.cwiseProduct(integral);
+      Eigen::MatrixXd A = M;
+      A.diagonal() += h * (kd + slope + env.trocarSlope + env.externalSlope) + h * h * kp;
+      const Eigen::VectorXd dqd = A.llt().solve(h * (pid - bias - friction - env.trocar - env.external));
+      qd += dqd;
+      q += h * qd;
+      // What each part took of the motor effort over this step; they sum to it to rounding.
+      free = M * (dqd / h) + bias + friction + slope.cwiseProduct(dqd);
+      trocar = env.trocar + env.trocarSlope.cwiseProduct(dqd);
+      external = env.external + env.externalSlope.cwiseProduct(dqd);
+    }
+    if (!q.allFinite() || !qd.allFinite())
+      throw Error("arm simulation: the state diverged at t = " + std::to_string(t) + " s");
+    const Eigen::VectorXd motor = free + trocar + external;
+    env = environment(arm, o, q, qd);
+    rec.t[s] = t;
+    rec.qTrue.row(s) = q;
+    rec.qdTrue.row(s) = qd;
+    rec.freeEffort.row(s) = free;
+    rec.trocarEffort.row(s) = trocar;
+    rec.externalEffort.row(s) = external;
+    rec.wrench.row(s) = env.wrench;
+    for (int i = 0; i < n; ++i) {
+      const MeasurementModel& m = o.measurement;
+      const double half = m.backlash[i] / 2;
+      reading[i] = std::clamp(reading[i], q[i] - half, q[i] + half);
+      rec.q(s, i) = reading[i] + m.positionNoise[i] * gauss(rng);
+      rec.qd(s, i) = qd[i] + m.velocityNoise[i] * gauss(rng);
+      rec.effort(s, i) = motor[i] + m.effortNoise[i] * gauss(rng);
+    }
+    const Eigen::VectorXd qMeasured = rec.q.row(s).transpose();
+    const Jacobian J = arm.chain().spatialJacobian(qMeasured);
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < n; ++c) rec.jacobian(s, r * n + c) = J(r, c);
+    rec.tip.row(s) = arm.chain().tipPose(q).translation().transpose();
+    if (progress && (s % 1000 == 0 || s + 1 == samples)) progress(double(s + 1) / samples);
+  }
+  return rec;
+}
+
+}  // namespace viscera::robot

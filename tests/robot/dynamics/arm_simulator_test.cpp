@@ -1,0 +1,115 @@
+// The simulated arm keeps Eq. 2.4 (motor effort = free-space dynamics + trocar + J^T F_ext) at every
+// sample, tracks its reference, and its phantom pushes back with its stiffness times the depth.
+#include <gtest/gtest.h>
+
+#include "core/Error.h"
+#include "robot/dynamics/ArmSimulator.h"
+
+namespace viscera::robot {
+namespace {
+
+ArmSimulationOptions noiseless(double duration) {
+  ArmSimulationOptions o = psmSimulationDefaults();
+  o.duration = duration;
+  for (auto* v : {&o.measurement.backlash, &o.measurement.positionNoise, &o.measurement.velocityNoise,
+                  &o.measurement.effortNoise})
+    std::fill(v->begin(), v->end(), 0.0);
+  return o;
+}
+
+// RMS over samples of a - b, relative to the RMS of a, per column.
+Eigen::VectorXd relativeRms(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return (a - b).colwise().norm().cwiseQuotient(a.colwise().norm()).transpose();
+}
+
+TEST(ArmSimulator, MotorEffortBalancesTheModelInFreeSpace) {
+  const ArmDynamics arm = psmDynamics();
+  const ArmRecording r = simulateArm(arm, noiseless(4));
+  ASSERT_EQ(r.samples(), 4001);
+  const Eigen::VectorXd rel = relativeRms(r.effort, r.freeEffort);
+  for (int i = 0; i < arm.dof(); ++i) EXPECT_LT(rel[i], 1e-9) << "joint " << i + 1;
+  // The free-space effort is the model's at the recorded state, up to the step's linearisation of
+  // friction over 0.2 ms and its acceleration being the step's mean.
+  Eigen::MatrixXd model(r.samples(), arm.dof());
+  for (int s = 1; s + 1 < r.samples(); ++s) {
+    const Eigen::VectorXd qdd = (r.qdTrue.row(s + 1) - r.qdTrue.row(s - 1)).transpose() * 500.0;
+    model.row(s) = arm.inverseDynamics(r.qTrue.row(s).transpose(), r.qdTrue.row(s).transpose(), qdd).transpose();
+  }
+  model.row(0) = r.freeEffort.row(0);
+  model.row(r.samples() - 1) = r.freeEffort.row(r.samples() - 1);
+  const Eigen::VectorXd relModel = relativeRms(r.freeEffort, model);
+  for (int i = 0; i < arm.dof(); ++i) EXPECT_LT(relModel[i], 0.05) << "joint " << i + 1;
+  EXPECT_EQ(r.externalEffort.norm(), 0.0);
+  EXPECT_EQ(r.trocarEffort.norm(), 0.0);
+}
+
+TEST(ArmSimulator, TrocarAndSealEffortsAddToTheMotors) {
+  const ArmDynamics arm = psmDynamics();
+  ArmSimulationOptions o = noiseless(4);
+  o.trocar.enabled = o.seal.enabled = true;
+  const ArmRecording r = simulateArm(arm, o);
+  EXPECT_GT(r.trocarEffort.col(0).cwiseAbs().maxCoeff(), 0.01);   // N m on yaw
+  EXPECT_GT(r.trocarEffort.col(2).cwiseAbs().maxCoeff(), 0.5);    // N on insertion (seal)
+  const Eigen::VectorXd rel = relativeRms(r.effort, Eigen::MatrixXd(r.freeEffort + r.trocarEffort));
+  for (int i = 0; i < arm.dof(); ++i) EXPECT_LT(rel[i], 1e-9) << "joint " << i + 1;
+}
+
+TEST(ArmSimulator, PhantomPushesBackWithItsStiffness) {
+  const ArmDynamics arm = psmDynamics();
+  ArmSimulationOptions o = noiseless(20);
+  o.phantom.enabled = true;
+  o.phantom.damping = 0;
+  o.phantom.friction = 0;
+  const ArmRecording r = simulateArm(arm, o);
+  int contact = 0;
+  double worst = 0, peak = 0;
+  for (int s = 0; s < r.samples(); ++s) {
+    const Eigen::Vector3d tip = r.tip.row(s).transpose();
+    const double depth = -(tip - o.phantom.point).dot(o.phantom.normal);
+    const Eigen::Vector3d f = r.wrench.row(s).head<3>().transpose();
+    // The tool presses into the surface: F_ext along the inward normal, |F| = k * depth.
+    const Eigen::Vector3d expected = depth > 0 ? Eigen::Vector3d(-o.phantom.stiffness * depth * o.phantom.normal)
+                                               : Eigen::Vector3d::Zero();
+    worst = std::max(worst, (f - expected).norm());
+    peak = std::max(peak, f.norm());
+    contact += depth > 0;
+  }
+  EXPECT_GT(contact, r.samples() / 10);
+  EXPECT_GT(peak, 1.0);  // N
+  EXPECT_LT(worst, 1e-9);
+  const Eigen::VectorXd rel = relativeRms(r.effort, Eigen::MatrixXd(r.freeEffort + r.externalEffort));
+  for (int i = 0; i < arm.dof(); ++i) EXPECT_LT(rel[i], 1e-9) << "joint " << i + 1;
+  // J^T F_ext at the recorded state against the step's external effort (0.2 ms apart).
+  double err = 0, norm = 0;
+  for (int s = 0; s < r.samples(); ++s) {
+    const Jacobian J = arm.chain().spatialJacobian(r.qTrue.row(s).transpose());
+    err += (J.transpose() * r.wrench.row(s).transpose() - r.externalEffort.row(s).transpose()).squaredNorm();
+    norm += r.externalEffort.row(s).squaredNorm();
+  }
+  EXPECT_LT(std::sqrt(err / norm), 0.02);
+}
+
+TEST(ArmSimulator, FollowsItsReferenceAndRepeatsWithItsSeed) {
+  const ArmDynamics arm = psmDynamics();
+  const ArmRecording a = simulateArm(arm, noiseless(2));
+  const ArmRecording b = simulateArm(arm, noiseless(2));
+  EXPECT_EQ(a.effort, b.effort);
+  ArmSimulationOptions o = noiseless(2);
+  o.seed = 2;
+  EXPECT_NE(simulateArm(arm, o).effort, a.effort);
+  // Within the joint limits throughout.
+  for (int s = 0; s < a.samples(); ++s) EXPECT_TRUE(arm.chain().limitViolations(a.qTrue.row(s).transpose()).empty());
+}
+
+TEST(ArmSimulator, RejectsOptionsThatDoNotFitTheArm) {
+  const ArmDynamics arm = psmDynamics();
+  ArmSimulationOptions o = psmSimulationDefaults();
+  o.gains.kp.pop_back();
+  EXPECT_THROW(simulateArm(arm, o), Error);
+  o = psmSimulationDefaults();
+  o.excitation.upper[2] = 0.3;  // beyond the insertion limit
+  EXPECT_THROW(simulateArm(arm, o), Error);
+}
+
+}  // namespace
+}  // namespace viscera::robot
