@@ -32,6 +32,7 @@
 #include "apps/viscera/SofaSuiteCommand.h"
 #include "apps/viscera/TrajectoryCommand.h"
 #include "apps/viscera/VelocityCommand.h"
+#include "apps/viscera/ForceCommand.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
 #include "engine/collision/Collision.h"
@@ -258,6 +259,7 @@ int main(int argc, char** argv) {
   addKinematicsCommand(app, action);
   addEspmCommand(app, action);
   addVelocityCommand(app, action);
+  addForceCommand(app, action);
   addCloudCommand(app, action);
   addRegisterCommand(app, action);
   addCameraCommand(app, action);

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "learning/nn/Corrector.h"
+#include "learning/nn/Regressor.h"
 #include "learning/nn/Stepper.h"
 
 namespace viscera::learning {
@@ -23,6 +24,10 @@ struct LearningBackend {
                                                    const CorrectorArchitecture&, const std::string&, std::uint64_t);
   std::unique_ptr<Corrector::Impl> (*loadCorrector)(const std::string& folder);
   void (*trainCorrector)(const CorrectorTrainOptions&, const std::function<void(const CorrectorEpochReport&)>&);
+  std::unique_ptr<Regressor::Impl> (*trainRegressor)(const RegressorArchitecture&, const RegressorTrainOptions&,
+                                                     const RegressorData&, const RegressorData&,
+                                                     const std::function<void(const RegressorEpochReport&)>&);
+  std::unique_ptr<Regressor::Impl> (*loadRegressor)(const std::string& folder);
   GemmSpeed (*measureGemm)(int m, int k, int n, int repeats);
   void (*setThreads)(int threads);
 };

@@ -107,6 +107,13 @@ void trainCorrector(const CorrectorTrainOptions& options, const std::function<vo
   learningBackend().trainCorrector(options, progress);
 }
 
+Regressor Regressor::train(const RegressorArchitecture& arch, const RegressorTrainOptions& options, const RegressorData& train,
+                           const RegressorData& validation, const std::function<void(const RegressorEpochReport&)>& progress) {
+  return Regressor(learningBackend().trainRegressor(arch, options, train, validation, progress));
+}
+
+Regressor Regressor::load(const std::string& folder) { return Regressor(learningBackend().loadRegressor(folder)); }
+
 GemmSpeed measureGemm(int m, int k, int n, int repeats) { return learningBackend().measureGemm(m, k, n, repeats); }
 
 }  // namespace viscera::learning

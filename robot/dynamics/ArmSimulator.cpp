@@ -14,7 +14,7 @@ ArmSimulationOptions psmSimulationDefaults() {
   ArmSimulationOptions o;
   o.gains.kp = {40, 40, 2000, 0.3, 0.3, 0.3};
   o.gains.kd = {2.5, 2.5, 60, 0.012, 0.012, 0.012};
-  o.gains.ki = {40, 40, 2000, 0.3, 0.3, 0.3};
+  o.gains.ki = {8, 8, 400, 0.06, 0.06, 0.06};
   // Cable transmissions: a little play in the outer joints' readings; dVRK-like noise levels.
   o.measurement.backlash = {2e-4, 2e-4, 2e-5, 1e-3, 1e-3, 1e-3};
   o.measurement.positionNoise = {2e-5, 2e-5, 2e-6, 1e-4, 1e-4, 1e-4};
@@ -36,34 +36,50 @@ struct Segment {
   Eigen::VectorXd from, to;
 };
 
-// The reference: segments between waypoints, plus tremor.
+// The reference: segments between waypoints, plus a slow wander.
 class Reference {
  public:
   Reference(const ArmDynamics& arm, const ArmSimulationOptions& o, std::mt19937_64& rng) : n_(arm.dof()) {
     const Excitation& e = o.excitation;
     std::uniform_real_distribution<double> u01(0, 1);
-    auto draw = [&] {
+    // A waypoint at most `step` of each range away from `from` (anywhere when from is empty).
+    auto draw = [&](const Eigen::VectorXd* from) {
       Eigen::VectorXd q(n_);
-      for (int i = 0; i < n_; ++i) q[i] = e.lower[i] + (e.upper[i] - e.lower[i]) * u01(rng);
+      for (int i = 0; i < n_; ++i) {
+        const double range = e.upper[i] - e.lower[i];
+        const double x = from ? (*from)[i] + e.step * range * (2 * u01(rng) - 1) : e.lower[i] + range * u01(rng);
+        q[i] = std::clamp(x, e.lower[i], e.upper[i]);
+      }
       return q;
     };
     auto duration = [&] { return e.minSegment + (e.maxSegment - e.minSegment) * u01(rng); };
     const Phantom& ph = o.phantom;
-    // Insertion at which the tip touches the phantom, for the yaw/pitch/... of q (joint 3 moves the
-    // tip along the shaft, so the height above the surface is linear in it).
+    // Insertion at which the tip touches the phantom, for the other joints of q (joint 3 moves the
+    // tip along the shaft, so the height above the surface is linear in it); `along` is the height
+    // change per metre of insertion (< 0 when the shaft points into the surface).
     auto surfaceInsertion = [&](const Eigen::VectorXd& q, double& along) {
       const Eigen::Vector3d tip = arm.chain().tipPose(q).translation();
       Eigen::VectorXd q2 = q;
       q2[2] += 0.01;
       const Eigen::Vector3d shaft = (arm.chain().tipPose(q2).translation() - tip) / 0.01;
-      along = shaft.dot(ph.normal);  // height change per metre of insertion (< 0 when pointing in)
+      along = shaft.dot(ph.normal);
       const double height = (tip - ph.point).dot(ph.normal);
       return q[2] - height / along;
     };
-    constexpr double clearance = 0.005;  // m above the surface for free motion
-    Eigen::VectorXd q = draw();
-    double along = 0;
-    if (ph.enabled) q[2] = std::min(q[2], surfaceInsertion(q, along) - clearance / std::max(-along, 0.3));
+    constexpr double clearance = 0.008;  // m above the surface for free motion
+    // The deepest insertion that keeps the tip above the surface along a joint-space move a -> b
+    // with insertion x at both ends (checked at points along the move).
+    auto freeInsertion = [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+      double limit = arm.chain().joints()[2].upper, along = 0;
+      for (double s = 0; s <= 1.0001; s += 0.125) {
+        const Eigen::VectorXd q = a + s * (b - a);
+        const double touch = surfaceInsertion(q, along);
+        if (along < 0) limit = std::min(limit, touch - clearance / -along);
+      }
+      return std::max(limit, e.lower[2]);
+    };
+    Eigen::VectorXd q = draw(nullptr);
+    if (ph.enabled) q[2] = std::min(q[2], freeInsertion(q, q));
     double t = 0;
     const double end = o.duration + 1;
     auto add = [&](const Eigen::VectorXd& to, double d) {
@@ -71,31 +87,44 @@ class Reference {
       t += d;
       q = to;
     };
-    while (t < end) {
+    // A free move to `to`, retracting first when the insertion now would dip into the phantom.
+    auto moveTo = [&](Eigen::VectorXd to) {
+      if (ph.enabled) {
+        const double x = freeInsertion(q, to);
+        to[2] = std::min(to[2], x);
+        if (q[2] > x + 1e-6) {
+          Eigen::VectorXd up = q;
+          up[2] = x;
+          add(up, 0.5 + 0.5 * u01(rng));
+        }
+      }
+      add(to, duration());
+    };
+    double along = 0;
+    for (int attempts = 0; t < end; ++attempts) {
+      if (attempts > 100000) throw Error("arm simulation: no palpation fits the excitation's ranges and the phantom");
       if (ph.enabled && u01(rng) < e.palpationShare) {
         // Palpation: above a point, down into the surface along the shaft, hold, up again.
-        Eigen::VectorXd above = draw();
+        Eigen::VectorXd above = draw(&q);
         const double touch = surfaceInsertion(above, along);
         if (!(along < -0.3)) continue;  // too grazing: draw again
         above[2] = touch - clearance / -along;
         Eigen::VectorXd pressed = above;
         pressed[2] = touch + (e.minDepth + (e.maxDepth - e.minDepth) * u01(rng)) / -along;
-        if (above[2] < arm.chain().joints()[2].lower || pressed[2] > arm.chain().joints()[2].upper) continue;
-        add(above, duration());
-        add(pressed, 0.4 + 0.8 * u01(rng));
-        add(pressed, 0.2 + 0.8 * u01(rng));
-        add(above, 0.4 + 0.8 * u01(rng));
+        if (above[2] < e.lower[2] || pressed[2] > e.upper[2]) continue;
+        moveTo(above);
+        add(pressed, 0.8 + 1.2 * u01(rng));
+        add(pressed, 0.3 + 1.0 * u01(rng));
+        add(above, 0.8 + 1.2 * u01(rng));
       } else {
-        Eigen::VectorXd to = draw();
-        if (ph.enabled) to[2] = std::min(to[2], surfaceInsertion(to, along) - clearance / std::max(-along, 0.3));
-        add(to, duration());
+        moveTo(draw(&q));
       }
     }
-    // Tremor: three sines per joint, 0.5 to 4 Hz.
-    tremor_.resize(n_);
+    // Wander: three sines per joint, 0.1 to 1 Hz.
+    wander_.resize(n_);
     for (int i = 0; i < n_; ++i)
       for (int k = 0; k < 3; ++k)
-        tremor_[i].push_back({e.tremor * (e.upper[i] - e.lower[i]) / 3, 2 * std::numbers::pi * (0.5 + 3.5 * u01(rng)),
+        wander_[i].push_back({e.wander * (e.upper[i] - e.lower[i]), 2 * std::numbers::pi * (0.1 + 0.9 * u01(rng)),
                               2 * std::numbers::pi * u01(rng)});
   }
 
@@ -107,7 +136,7 @@ class Reference {
     q = s.from + minJerk(x) * (s.to - s.from);
     qd = (minJerkRate(x) / s.duration) * (s.to - s.from);
     for (int i = 0; i < n_; ++i)
-      for (const Sine& w : tremor_[i]) {
+      for (const Sine& w : wander_[i]) {
         q[i] += w.amplitude * std::sin(w.omega * t + w.phase);
         qd[i] += w.amplitude * w.omega * std::cos(w.omega * t + w.phase);
       }
@@ -120,7 +149,7 @@ class Reference {
   int n_;
   std::vector<Segment> segments_;
   size_t current_ = 0;
-  std::vector<std::vector<Sine>> tremor_;
+  std::vector<std::vector<Sine>> wander_;
 };
 
 void requireSize(const std::vector<double>& v, int n, const char* what) {

@@ -61,16 +61,18 @@ struct JointGains {
   std::vector<double> kp, kd, ki;
 };
 
-// The teleoperation-like reference: joint-space waypoints drawn uniformly in [lower, upper] and
-// joined by minimum-jerk segments of random duration, plus a small tremor (sums of sines). With a
-// phantom, a share of the segments are palpations: down to the surface, into it by a random depth,
-// held, and back.
+// The teleoperation-like reference: a random walk of joint-space waypoints (each step at most
+// `step` of the joint's range, within [lower, upper]) joined by minimum-jerk segments of random
+// duration, plus a slow wander (sums of sines). With a phantom, a share of the moves are
+// palpations: above a point, into the surface along the shaft by a random depth, held, and back;
+// free moves keep above the surface (retracting first when the path would dip into it).
 struct Excitation {
   std::vector<double> lower, upper;  // joint ranges of the waypoints
-  double minSegment = 0.6, maxSegment = 2.5;  // s
-  double tremor = 0.02;        // relative amplitude (share of each joint's range)
-  double palpationShare = 0.5; // with a phantom: share of segments that press it
-  double minDepth = 0.003, maxDepth = 0.015;  // m, commanded depth below the surface
+  double step = 0.35;                // largest step between waypoints, share of the range
+  double minSegment = 1.0, maxSegment = 4.0;  // s
+  double wander = 0.004;       // relative amplitude of the sines (share of each joint's range)
+  double palpationShare = 0.5; // with a phantom: share of moves that press it
+  double minDepth = 0.002, maxDepth = 0.012;  // m, commanded depth below the surface
 };
 
 struct ArmSimulationOptions {

@@ -5,12 +5,23 @@
 namespace viscera::learning {
 namespace {
 
+}  // namespace
+
+// learning/nn/torch/Regressor.cpp
+std::unique_ptr<Regressor::Impl> newTrainedRegressor(const RegressorArchitecture&, const RegressorTrainOptions&,
+                                                      const RegressorData&, const RegressorData&,
+                                                      const std::function<void(const RegressorEpochReport&)>&);
+std::unique_ptr<Regressor::Impl> loadSavedRegressor(const std::string& folder);
+
+namespace {
+
 void setThreads(int threads) {
   if (threads > 0) torch::set_num_threads(threads);
 }
 
 const LearningBackend kTorchBackend{&newTorchStepper,   &loadTorchStepper,    &torchTrainStepper, &newTorchCorrector,
-                                    &loadTorchCorrector, &torchTrainCorrector, &torchMeasureGemm,  &setThreads};
+                                    &loadTorchCorrector, &torchTrainCorrector, &newTrainedRegressor, &loadSavedRegressor,
+                                    &torchMeasureGemm,  &setThreads};
 
 }  // namespace
 }  // namespace viscera::learning
