@@ -1,11 +1,12 @@
 // `viscera force simulate` writes a recording with known truth from the PSM dynamics simulator;
 // `train` identifies or trains a force model; `eval` reports its errors (NRMSE, Eq. 2.7; RelE,
 // Eq. 2.8) per joint and per axis, the stiffness identified from its forces, and plots; `estimate`
-// writes the tip wrench it estimates along a joint log.
+// writes the tip wrench it estimates along a joint log; `bench` times its estimate sample by sample.
 #include "apps/viscera/ForceCommand.h"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -35,6 +36,17 @@ using learning::ForceRecording;
 
 const char* kAxes[] = {"Fx", "Fy", "Fz", "Tx", "Ty", "Tz"};
 
+// An output folder: its parent exists, and it is a folder when it exists (replaced whole).
+void requireOutputFolder(const std::string& path, const std::string& option, const std::vector<std::string>& inputs) {
+  const fs::path parent = fs::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty() && !fs::is_directory(parent, ec)) throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
+  const auto st = fs::symlink_status(path, ec);
+  if (fs::is_symlink(st)) throw Error(SourceLoc{path}, option + ": is a symbolic link, and outputs do not follow links");
+  if (fs::exists(st) && !fs::is_directory(st)) throw Error(SourceLoc{path}, option + ": is a file, not a folder");
+  cli::requireNotAnInput(path, option, inputs);
+}
+
 // A folder written whole or not at all: built beside its place, then swapped in.
 template <class Write>
 void writeFolderAtomically(const std::string& out, Write write) {
@@ -53,14 +65,14 @@ void writeFolderAtomically(const std::string& out, Write write) {
 
 struct SimulateOptions {
   std::string out, workspace = "full";
-  double duration = 60, rate = 1000, stiffness = 400;
+  double duration = 60, rate = 1000, stiffness = 600;
   std::uint64_t seed = 1;
-  bool trocar = false, seal = false, phantom = false, noNoise = false;
+  bool trocar = false, seal = false, phantom = false, noNoise = false, jacobian = false;
   int digits = 10;
 };
 
 int runSimulate(const SimulateOptions& o) {
-  cli::requireParentFolder(o.out, "--out");
+  requireOutputFolder(o.out, "out", {});
   const robot::ArmDynamics arm = robot::psmDynamics();
   robot::ArmSimulationOptions s = robot::psmSimulationDefaults();
   s.duration = o.duration;
@@ -95,7 +107,7 @@ int runSimulate(const SimulateOptions& o) {
     const robot::JointStateLog joints = robot::makeJointStateLog(r.t, r.q, r.qd, r.effort);
     robot::writeSeries(dir + "/joints.csv", joints.series, o.digits);
     robot::writeSeries(dir + "/wrench.csv", robot::wrenchSeries(r.t, r.wrench), o.digits);
-    robot::writeSeries(dir + "/jacobian.csv", robot::jacobianSeries(r.t, r.jacobian, r.dof), o.digits);
+    if (o.jacobian) robot::writeSeries(dir + "/jacobian.csv", robot::jacobianSeries(r.t, r.jacobian, r.dof), o.digits);
     robot::Series truth{"", {}, r.t, Eigen::MatrixXd(r.samples(), 3 * r.dof + 3), {}};
     for (const char* part : {"free", "trocar", "external"})
       for (int j = 1; j <= r.dof; ++j) truth.names.push_back(std::string(part) + std::to_string(j));
@@ -116,8 +128,8 @@ int runSimulate(const SimulateOptions& o) {
     if (o.phantom) j["phantomStiffness"] = o.stiffness;
     j["files"] = {{"joints.csv", "measured joint states t,q1..q6,qd1..qd6,tau1..tau6 (rad, m, rad/s, m/s, N m, N)"},
                   {"wrench.csv", "true tip wrench the tool applies to the environment, base frame (N, N m)"},
-                  {"jacobian.csv", "spatial Jacobian at the measured q, row-major"},
                   {"truth.csv", "efforts: free-space dynamics, trocar (wall and seal), external J^T F; true tip position (m)"}};
+    if (o.jacobian) j["files"]["jacobian.csv"] = "spatial Jacobian at the measured q, row-major";
     writeFileAtomic(dir + "/simulation.json", j.dump(2) + "\n");
   });
   double peak = 0;
@@ -144,7 +156,9 @@ std::vector<ForceRecording> readRecordings(const std::vector<std::string>& paths
 }
 
 int runTrain(const TrainOptions& o) {
-  cli::requireParentFolder(o.out, "--out");
+  std::vector<std::string> inputs = o.data;
+  if (!o.spec.base.empty()) inputs.push_back(o.spec.base);
+  requireOutputFolder(o.out, "--out", inputs);
   if (!(o.spec.rate > 0)) throw Error("--rate: must be positive");
   if (o.threads > 0 && o.spec.kind != "physical") learning::setTorchThreads(o.threads);
   const auto recordings = readRecordings(o.data, o.columns, o.spec.rate);
@@ -185,7 +199,9 @@ std::string percent(double v) {
 }
 
 int runEval(const EvalOptions& o) {
-  cli::requireParentFolder(o.out, "--out");
+  std::vector<std::string> inputs = o.data;
+  inputs.push_back(o.model);
+  requireOutputFolder(o.out, "--out", inputs);
   if (o.threads > 0) learning::setTorchThreads(o.threads);
   const ForceModel model = ForceModel::load(o.model);
   const auto recordings = readRecordings(o.data, o.columns, model.rate);
@@ -238,7 +254,8 @@ int runEval(const EvalOptions& o) {
         const robot::StiffnessFit b = robot::identifyStiffness(tips, estimated.leftCols(3), o.threshold);
         rj["stiffness"] = {{"fromTrueForces", a.stiffness},   {"fromEstimatedForces", b.stiffness},
                            {"relativeDifference", (b.stiffness - a.stiffness) / a.stiffness},
-                           {"contactSamples", {a.samples, b.samples}}, {"r2", {a.r2, b.r2}}};
+                           {"contacts", {a.episodes, b.episodes}}, {"contactSamples", {a.samples, b.samples}},
+                           {"thresholds", {a.threshold, b.threshold}}, {"r2", {a.r2, b.r2}}};
       } catch (const Error& e) {
         rj["stiffness"] = {{"note", e.what()}};
       }
@@ -332,10 +349,55 @@ int runEstimate(const EstimateOptions& o) {
   return kExitOk;
 }
 
+// ---------------------------------------------------------------- bench
+
+struct BenchOptions {
+  std::string model, data, columns;
+  int samples = 2000, threads = 1;
+};
+
+// Latency of estimating sample by sample: for each sample, the model's estimate from the joint
+// states of the last `history` samples only (what an online estimator recomputes per sample, with
+// nothing cached), timed one by one.
+int runBench(const BenchOptions& o) {
+  if (o.samples < 10) throw Error("--samples: at least 10");
+  learning::setTorchThreads(o.threads);
+  const ForceModel model = ForceModel::load(o.model);
+  const ForceRecording r = learning::resampleRecording(learning::readForceRecording(o.data, model.dof, o.columns), model.rate);
+  int history = model.window;
+  for (const ForceModel* m = model.base.get(); m; m = m->base.get()) history += m->window;
+  history = std::max(history + 2, 3);  // accelerations need neighbours
+  if (r.joints.samples() < history + o.samples)
+    throw Error(o.data + ": " + std::to_string(r.joints.samples()) + " samples at " + std::to_string(model.rate) +
+                " Hz; the benchmark needs " + std::to_string(history + o.samples));
+  std::vector<double> micros;
+  micros.reserve(static_cast<size_t>(o.samples));
+  double sink = 0;
+  for (int i = 0; i < o.samples; ++i) {
+    robot::JointStateLog slice;
+    slice.dof = model.dof;
+    slice.series.source = r.name;
+    slice.series.t.assign(r.joints.series.t.begin() + i, r.joints.series.t.begin() + i + history);
+    slice.series.values = r.joints.series.values.middleRows(i, history);
+    const auto t0 = std::chrono::steady_clock::now();
+    const Eigen::MatrixXd w = model.wrenches(slice);
+    micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    sink += w(history - 1, 0);
+  }
+  std::sort(micros.begin(), micros.end());
+  auto at = [&](double share) { return micros[static_cast<size_t>(share * static_cast<double>(micros.size() - 1))]; };
+  std::cout << std::fixed << std::setprecision(1) << model.description << "\n  " << o.samples << " samples, " << history
+            << " joint states each, " << o.threads << " thread(s): median " << at(0.5) << " us, 90th percentile " << at(0.9)
+            << " us, max " << micros.back() << " us per sample (" << (at(0.5) <= 1000 ? "within" : "beyond")
+            << " 1 kHz)\n";
+  if (!std::isfinite(sink)) std::cerr << "note: a non-finite estimate\n";
+  return kExitOk;
+}
+
 }  // namespace
 
 void addForceCommand(CLI::App& app, std::function<int()>& action) {
-  auto* cmd = app.add_subcommand("force", "force estimation from robot signals: simulate arm data, train, evaluate, estimate");
+  auto* cmd = app.add_subcommand("force", "force estimation from robot signals: simulate arm data, train, evaluate, estimate, time");
   cmd->require_subcommand(1);
 
   auto s = std::make_shared<SimulateOptions>();
@@ -344,7 +406,8 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
       "The dVRK PSM's joint-space dynamics under a PID controller follow a teleoperation-like reference (minimum-jerk\n"
       "moves along a random walk of joint waypoints, plus a slow wander). --phantom adds a compliant surface under the tool: half the\n"
       "moves then palpate it. --trocar adds the body wall around the shaft, --seal the cannula seal's friction.\n"
-      "Writes OUT/joints.csv (what a dVRK logs), wrench.csv (true tip wrench), jacobian.csv, truth.csv and simulation.json.");
+      "Writes OUT/joints.csv (what a dVRK logs), wrench.csv (true tip wrench), truth.csv, simulation.json and, with\n"
+      "--jacobian, jacobian.csv.");
   sim->add_option("out", s->out, "output folder")->required();
   sim->add_option("--duration", s->duration, "seconds of motion")->capture_default_str();
   sim->add_option("--rate", s->rate, "samples per second")->capture_default_str();
@@ -355,6 +418,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   sim->add_flag("--phantom", s->phantom, "a compliant phantom under the tool, palpated");
   sim->add_option("--stiffness", s->stiffness, "the phantom's stiffness (N/m)")->capture_default_str();
   sim->add_flag("--no-noise", s->noNoise, "perfect sensors: no noise, no backlash");
+  sim->add_flag("--jacobian", s->jacobian, "also write jacobian.csv (the Jacobian at each sample; large)");
   sim->add_option("--digits", s->digits, "significant digits of the written values")->capture_default_str();
   sim->callback([s, &action] { action = [s] { return runSimulate(*s); }; });
 
@@ -362,7 +426,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   auto* train = cmd->add_subcommand("train", "identify or train a force model on recordings");
   train->footer(
       "Kinds: physical (least-squares identification of the arm's dynamic parameters), mlp (one network per joint,\n"
-      "12-100-1, Table 2-4), snn (one network for all joints), lstm (per joint, LSTM 128 + two layers), correction (the\n"
+      "12-100-1, Table 2-4), snn (one network for all joints), lstm (per joint, LSTM 64 over 10 samples + two layers), correction (the\n"
       "trocar correction: window 30 of joint states plus the --base model's prediction, 256 hidden, learns the base's\n"
       "residual), direct (window of joint velocities and efforts to the tip force; needs wrench.csv). mlp and lstm\n"
       "with --base learn the base's residual. DATA: recording folders (joints.csv, wrench.csv) or joint logs; free-space\n"
@@ -410,6 +474,15 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   est->add_option("--jacobian", x->jacobian, "Jacobian log (t,J11..J66) instead of the PSM's kinematics");
   est->add_option("--damping", x->damping, "damping of the pseudo-inverse J^-T")->capture_default_str();
   est->callback([x, &action] { action = [x] { return runEstimate(*x); }; });
+
+  auto b = std::make_shared<BenchOptions>();
+  auto* bench = cmd->add_subcommand("bench", "time a force model's estimate sample by sample (the online latency)");
+  bench->add_option("model", b->model, "force model folder")->required();
+  bench->add_option("data", b->data, "a recording to take joint states from")->required();
+  bench->add_option("--samples", b->samples, "samples timed")->capture_default_str();
+  bench->add_option("--threads", b->threads, "LibTorch threads")->capture_default_str();
+  bench->add_option("--columns", b->columns, "column map of the joint log");
+  bench->callback([b, &action] { action = [b] { return runBench(*b); }; });
 }
 
 }  // namespace viscera

@@ -1,4 +1,4 @@
-// `viscera force simulate|train|eval|estimate`: force estimation from robot signals (dissertation
+// `viscera force simulate|train|eval|estimate|bench`: force estimation from robot signals (dissertation
 // §2.3-2.5) on simulated data with known truth or on real dVRK logs.
 #pragma once
 

@@ -135,8 +135,8 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
     if (k == "snn") a.outputScaling = "none";  // one loss over all joints in their own units (Table 2-4's SNN)
   } else if (k == "lstm") {
     a.kind = "lstm";
-    a.window = 20;
-    a.hidden = 128;
+    a.window = 10;
+    a.hidden = 64;
     a.perOutput = true;
     defaultEpochs = 20;
   } else if (k == "correction") {
@@ -145,7 +145,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
     a.hidden = 256;
     a.activation = "relu";
     a.perOutput = true;
-    defaultEpochs = 40;
+    defaultEpochs = 20;
   } else if (k == "direct") {
     a.kind = "mlp";
     a.window = 10;

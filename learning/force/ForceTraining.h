@@ -29,8 +29,8 @@ ForceRecording resampleRecording(const ForceRecording& r, double rate);
 struct ForceTrainSpec {
   std::string kind = "mlp";  // physical, mlp, snn, lstm, correction, direct
   double rate = 200;         // Hz the model works at
-  int window = 0;            // 0: the kind's default (mlp, snn 1; lstm 20; correction 30; direct 10)
-  int hidden = 0;            // 0: the kind's default (mlp, snn 100; lstm 128; correction 256; direct 100)
+  int window = 0;            // 0: the kind's default (mlp, snn 1; lstm 10; correction 30; direct 10)
+  int hidden = 0;            // 0: the kind's default (mlp, snn 100; lstm 64; correction 256; direct 100)
   int epochs = 0;            // 0: the kind's default
   int batch = 256;
   double learningRate = 1e-3;

@@ -198,9 +198,13 @@ ArmDynamics psmDynamics() {
       {0.05, 0.02, 0.02, 0.05, 1e-3},  {0.08, 0.03, 0.02, 0.05, 1e-3},  {0.6, 0.3, 0.005, 1.5, 1e-4},
       {0.004, 0.002, 0.05, 0.002, 1e-3}, {0.006, 0.002, 0.05, 0.002, 1e-3}, {0.006, 0.002, 0.05, 0.002, 1e-3},
   };
-  // Spring counterbalance of the pitch parallelogram; the other joints have none.
+  // Spring counterbalance of the pitch parallelogram; the instrument's cables pull its roll and wrist
+  // back towards their neutral positions, like springs.
   std::vector<JointSpring> springs(6);
   springs[1] = {0.6, 0.0, -0.8};
+  springs[3] = {0.004, 0.0, 0.0};
+  springs[4] = {0.02, 0.0, 0.0};
+  springs[5] = {0.02, 0.0, 0.0};
   return ArmDynamics(psmLargeNeedleDriver(), std::move(links), gravity, std::move(armature), std::move(friction),
                      std::move(springs));
 }

@@ -18,8 +18,8 @@ ArmSimulationOptions psmSimulationDefaults() {
   // Cable transmissions: a little play in the outer joints' readings; dVRK-like noise levels.
   o.measurement.backlash = {2e-4, 2e-4, 2e-5, 1e-3, 1e-3, 1e-3};
   o.measurement.positionNoise = {2e-5, 2e-5, 2e-6, 1e-4, 1e-4, 1e-4};
-  o.measurement.velocityNoise = {2e-3, 2e-3, 2e-4, 1e-2, 1e-2, 1e-2};
-  o.measurement.effortNoise = {0.01, 0.01, 0.05, 5e-4, 5e-4, 5e-4};
+  o.measurement.velocityNoise = {1e-3, 1e-3, 1e-4, 3e-3, 3e-3, 3e-3};
+  o.measurement.effortNoise = {0.01, 0.01, 0.03, 2e-4, 2e-4, 2e-4};
   o.excitation.lower = {-0.9, -0.6, 0.08, -2.0, -1.0, -1.0};
   o.excitation.upper = {0.9, 0.6, 0.22, 2.0, 1.0, 1.0};
   return o;
@@ -27,13 +27,22 @@ ArmSimulationOptions psmSimulationDefaults() {
 
 namespace {
 
-// Minimum-jerk blend 0 -> 1 and its derivative with respect to the normalised time.
-double minJerk(double s) { return s * s * s * (10 + s * (-15 + 6 * s)); }
-double minJerkRate(double s) { return 30 * s * s * (1 - s) * (1 - s); }
-
+// A segment of the reference: quintic Hermite from `from` to `to` with end velocities v0, v1 and
+// zero end accelerations (the minimum-jerk move when both velocities are zero).
 struct Segment {
   double start = 0, duration = 1;
-  Eigen::VectorXd from, to;
+  Eigen::VectorXd from, to, v0, v1;
+  bool free = true;  // a free move (palpations stop at each of their waypoints)
+
+  void at(double x, Eigen::VectorXd& q, Eigen::VectorXd& qd) const {
+    const double x2 = x * x, x3 = x2 * x, x4 = x3 * x, x5 = x4 * x;
+    const double h0 = 1 - 10 * x3 + 15 * x4 - 6 * x5, h1 = x - 6 * x3 + 8 * x4 - 3 * x5;
+    const double h2 = -4 * x3 + 7 * x4 - 3 * x5, h3 = 10 * x3 - 15 * x4 + 6 * x5;
+    const double d0 = -30 * x2 + 60 * x3 - 30 * x4, d1 = 1 - 18 * x2 + 32 * x3 - 15 * x4;
+    const double d2 = -12 * x2 + 28 * x3 - 15 * x4, d3 = 30 * x2 - 60 * x3 + 30 * x4;
+    q = h0 * from + h3 * to + duration * (h1 * v0 + h2 * v1);
+    qd = (d0 * from + d3 * to) / duration + d1 * v0 + d2 * v1;
+  }
 };
 
 // The reference: segments between waypoints, plus a slow wander.
@@ -82,8 +91,9 @@ class Reference {
     if (ph.enabled) q[2] = std::min(q[2], freeInsertion(q, q));
     double t = 0;
     const double end = o.duration + 1;
-    auto add = [&](const Eigen::VectorXd& to, double d) {
-      segments_.push_back({t, d, q, to});
+    const Eigen::VectorXd rest = Eigen::VectorXd::Zero(n_);
+    auto add = [&](const Eigen::VectorXd& to, double d, bool free = false) {
+      segments_.push_back({t, d, q, to, rest, rest, free});
       t += d;
       q = to;
     };
@@ -98,20 +108,26 @@ class Reference {
           add(up, 0.5 + 0.5 * u01(rng));
         }
       }
-      add(to, duration());
+      add(to, duration(), true);
     };
     double along = 0;
-    for (int attempts = 0; t < end; ++attempts) {
-      if (attempts > 100000) throw Error("arm simulation: no palpation fits the excitation's ranges and the phantom");
+    int misses = 0;  // palpation spots drawn in a row that the shaft cannot press
+    while (t < end) {
       if (ph.enabled && u01(rng) < e.palpationShare) {
-        // Palpation: above a point, down into the surface along the shaft, hold, up again.
-        Eigen::VectorXd above = draw(&q);
+        // Palpation: above a point, down into the surface along the shaft, hold, up again. The spot
+        // is near the current pose; after many misses there, anywhere in the ranges.
+        if (misses > 100000) throw Error("arm simulation: no palpation fits the excitation's ranges and the phantom");
+        Eigen::VectorXd above = draw(misses < 20 ? &q : nullptr);
         const double touch = surfaceInsertion(above, along);
-        if (!(along < -0.3)) continue;  // too grazing: draw again
-        above[2] = touch - clearance / -along;
         Eigen::VectorXd pressed = above;
+        above[2] = touch - clearance / -along;
         pressed[2] = touch + (e.minDepth + (e.maxDepth - e.minDepth) * u01(rng)) / -along;
-        if (above[2] < e.lower[2] || pressed[2] > e.upper[2]) continue;
+        // Too grazing, or the surface is out of the insertion's reach: draw again.
+        if (!(along < -0.3) || above[2] < e.lower[2] || pressed[2] > e.upper[2]) {
+          ++misses;
+          continue;
+        }
+        misses = 0;
         moveTo(above);
         add(pressed, 0.8 + 1.2 * u01(rng));
         add(pressed, 0.3 + 1.0 * u01(rng));
@@ -119,6 +135,17 @@ class Reference {
       } else {
         moveTo(draw(&q));
       }
+    }
+    // A surgeon's hand does not stop at every waypoint: between two free moves the reference passes
+    // with half the mean velocity of the two (Catmull-Rom-like); the insertion stops when there is
+    // a phantom, whose clearance was checked along straight moves.
+    for (size_t k = 0; k + 1 < segments_.size(); ++k) {
+      Segment& a = segments_[k];
+      Segment& b = segments_[k + 1];
+      if (!a.free || !b.free) continue;
+      Eigen::VectorXd v = 0.5 * (b.to - a.from) / (a.duration + b.duration);
+      if (ph.enabled) v[2] = 0;
+      a.v1 = b.v0 = v;
     }
     // Wander: three sines per joint, 0.1 to 1 Hz.
     wander_.resize(n_);
@@ -132,9 +159,7 @@ class Reference {
   void at(double t, Eigen::VectorXd& q, Eigen::VectorXd& qd) {
     while (current_ + 1 < segments_.size() && t >= segments_[current_ + 1].start) ++current_;
     const Segment& s = segments_[current_];
-    const double x = std::clamp((t - s.start) / s.duration, 0.0, 1.0);
-    q = s.from + minJerk(x) * (s.to - s.from);
-    qd = (minJerkRate(x) / s.duration) * (s.to - s.from);
+    s.at(std::clamp((t - s.start) / s.duration, 0.0, 1.0), q, qd);
     for (int i = 0; i < n_; ++i)
       for (const Sine& w : wander_[i]) {
         q[i] += w.amplitude * std::sin(w.omega * t + w.phase);

@@ -43,7 +43,7 @@ struct Phantom {
   bool enabled = false;
   Eigen::Vector3d point{0.0, 0.0, -0.15};  // m, on the surface (base frame)
   Eigen::Vector3d normal{0.0, -0.766044443118978, 0.642787609686539};  // outward, unit (up at 40 deg)
-  double stiffness = 400;  // N/m
+  double stiffness = 600;  // N/m
   double damping = 5;      // N s/m
   double friction = 0.3;   // Coulomb coefficient
 };
@@ -68,11 +68,11 @@ struct JointGains {
 // free moves keep above the surface (retracting first when the path would dip into it).
 struct Excitation {
   std::vector<double> lower, upper;  // joint ranges of the waypoints
-  double step = 0.35;                // largest step between waypoints, share of the range
-  double minSegment = 1.0, maxSegment = 4.0;  // s
+  double step = 0.2;                 // largest step between waypoints, share of the range
+  double minSegment = 1.5, maxSegment = 5.0;  // s
   double wander = 0.004;       // relative amplitude of the sines (share of each joint's range)
   double palpationShare = 0.5; // with a phantom: share of moves that press it
-  double minDepth = 0.002, maxDepth = 0.012;  // m, commanded depth below the surface
+  double minDepth = 0.004, maxDepth = 0.018;  // m, commanded depth below the surface
 };
 
 struct ArmSimulationOptions {

@@ -67,7 +67,7 @@ struct ColumnMap {
 };
 
 // Reads one column name of a map or header; false when it names nothing we know.
-bool assign(const std::string& raw, int column, int dof, ColumnMap& map, std::string& problem) {
+bool assign(const std::string& raw, int column, int dof, ColumnMap& map, std::string& problem, bool lenient) {
   const std::string n = normalised(raw);
   if (raw == "-" || n.empty()) return true;
   if (n == "t" || n == "time" || n == "timestamp") {
@@ -90,15 +90,17 @@ bool assign(const std::string& raw, int column, int dof, ColumnMap& map, std::st
     slot[joint - 1] = column;
     return true;
   }
+  if (lenient) return true;  // a header's other columns (the jaw, a sequence number, ...)
   problem = "unknown column " + viscera::quoted(raw) + " (t, qK, qdK, tauK or -)";
   return false;
 }
 
-// The map named by `names`, or an empty optional-like result with `problem` set.
-bool mapFromNames(const std::vector<std::string>& names, int dof, ColumnMap& map, std::string& problem) {
+// The map named by `names` (false with `problem` set when it is not one). A header is `lenient`:
+// columns it names otherwise are skipped; a column map must name every column.
+bool mapFromNames(const std::vector<std::string>& names, int dof, ColumnMap& map, std::string& problem, bool lenient) {
   map = ColumnMap{-1, std::vector<int>(dof, -1), std::vector<int>(dof, -1), std::vector<int>(dof, -1)};
   for (int c = 0; c < static_cast<int>(names.size()); ++c)
-    if (!assign(names[c], c, dof, map, problem)) return false;
+    if (!assign(names[c], c, dof, map, problem, lenient)) return false;
   std::string missing;
   if (map.time < 0) missing += " t";
   for (int j = 0; j < dof; ++j) {
@@ -190,15 +192,15 @@ JointStateLog parseJointStateLog(const std::string& text, const std::string& sou
   if (!columns.empty()) {
     fileNames = splitCommas(columns);
     for (auto& n : fileNames) n.erase(0, n.find_first_not_of(" \t")), n.erase(n.find_last_not_of(" \t") + 1);
-    if (!mapFromNames(fileNames, dof, map, problem)) throw Error("--columns: " + problem);
+    if (!mapFromNames(fileNames, dof, map, problem, false)) throw Error("--columns: " + problem);
     if (static_cast<int>(fileNames.size()) != count)
       throw Error(source + ":" + std::to_string(first.line) + ": " + std::to_string(count) +
                   " columns, but the column map names " + std::to_string(fileNames.size()));
-  } else if (first.header && mapFromNames(first.fields, dof, map, problem)) {
+  } else if (first.header && mapFromNames(first.fields, dof, map, problem, true)) {
     fileNames = first.fields;
   } else if (count == 1 + 3 * dof || (dof == 6 && count == 22)) {
     fileNames = standardNames(count == 1 + 3 * dof ? dof : 7);
-    mapFromNames(fileNames, dof, map, problem);
+    mapFromNames(fileNames, dof, map, problem, false);
   } else {
     throw Error(source + ":" + std::to_string(first.line) + ": " + std::to_string(count) + " columns; a joint state log has " +
                 std::to_string(1 + 3 * dof) + " (t,q1..q" + std::to_string(dof) + ",qd1..,tau1..)" +
