@@ -23,6 +23,7 @@ void registerConstraintContact(Registry&);
 void registerMappings(Registry&);
 void registerObservation(Registry&);
 void registerRobotDrivers(Registry&);
+void registerForceDrivers(Registry&);
 void registerLearnedComponents(Registry&);
 
 void registerBuiltins(Registry& r) {
@@ -46,6 +47,7 @@ void registerBuiltins(Registry& r) {
   registerMappings(r);
   registerObservation(r);
   registerRobotDrivers(r);
+  registerForceDrivers(r);
   registerLearnedComponents(r);
 
   const char* drawing = "drawing only";
