@@ -91,8 +91,7 @@ int runSimulate(const SimulateOptions& o) {
     throw Error("--workspace: " + viscera::quoted(o.workspace) + " is neither full nor trocar");
   }
   if (o.noNoise)
-    for (auto* v : {&s.measurement.backlash, &s.measurement.positionNoise, &s.measurement.velocityNoise, &s.measurement.effortNoise})
-      std::fill(v->begin(), v->end(), 0.0);
+    s.measurement.makePerfect();
   const auto t0 = std::chrono::steady_clock::now();
   int lastPercent = -1;
   const robot::ArmRecording r = robot::simulateArm(arm, s, [&](double share) {

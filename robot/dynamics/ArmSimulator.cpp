@@ -25,6 +25,10 @@ ArmSimulationOptions psmSimulationDefaults() {
   return o;
 }
 
+void MeasurementModel::makePerfect() {
+  for (std::vector<double>* v : {&backlash, &positionNoise, &velocityNoise, &effortNoise}) std::fill(v->begin(), v->end(), 0.0);
+}
+
 namespace {
 
 // A segment of the reference: quintic Hermite from `from` to `to` with end velocities v0, v1 and

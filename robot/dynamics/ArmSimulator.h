@@ -54,6 +54,9 @@ struct MeasurementModel {
   std::vector<double> positionNoise;   // standard deviations, per joint
   std::vector<double> velocityNoise;
   std::vector<double> effortNoise;
+
+  // Perfect sensors: no backlash, no noise.
+  void makePerfect();
 };
 
 // Joint PID gains: tau = kp (q_ref - q) + kd (qd_ref - qd) + ki * integral(q_ref - q).

@@ -105,9 +105,7 @@ TEST(Regressor, RefusesArchitecturesAndDataThatDoNotFit) {
 // sensors, so that what the base misses is the wall's push alone, a function of the joint states.
 robot::JointStateLog simulated(std::uint64_t seed, double duration, bool wall) {
   robot::ArmSimulationOptions o = robot::psmSimulationDefaults();
-  for (auto* v : {&o.measurement.backlash, &o.measurement.positionNoise, &o.measurement.velocityNoise,
-                  &o.measurement.effortNoise})
-    std::fill(v->begin(), v->end(), 0.0);
+  o.measurement.makePerfect();
   o.duration = duration;
   o.rate = 200;
   o.seed = seed;

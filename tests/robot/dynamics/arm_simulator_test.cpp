@@ -11,9 +11,7 @@ namespace {
 ArmSimulationOptions noiseless(double duration) {
   ArmSimulationOptions o = psmSimulationDefaults();
   o.duration = duration;
-  for (auto* v : {&o.measurement.backlash, &o.measurement.positionNoise, &o.measurement.velocityNoise,
-                  &o.measurement.effortNoise})
-    std::fill(v->begin(), v->end(), 0.0);
+  o.measurement.makePerfect();
   return o;
 }
 

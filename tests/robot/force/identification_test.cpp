@@ -31,9 +31,7 @@ JointStateLog noiselessLog(const ArmDynamics& arm, std::uint64_t seed, double du
   o.rate = 200;
   o.substeps = 25;
   o.seed = seed;
-  for (auto* v : {&o.measurement.backlash, &o.measurement.positionNoise, &o.measurement.velocityNoise,
-                  &o.measurement.effortNoise})
-    std::fill(v->begin(), v->end(), 0.0);
+  o.measurement.makePerfect();
   const ArmRecording r = simulateArm(arm, o);
   return makeJointStateLog(r.t, r.q, r.qd, r.effort, "seed " + std::to_string(seed));
 }
