@@ -90,8 +90,7 @@ int runSimulate(const SimulateOptions& o) {
   } else if (o.workspace != "full") {
     throw Error("--workspace: " + viscera::quoted(o.workspace) + " is neither full nor trocar");
   }
-  if (o.noNoise)
-    s.measurement.makePerfect();
+  if (o.noNoise) s.measurement.makePerfect();
   const auto t0 = std::chrono::steady_clock::now();
   int lastPercent = -1;
   const robot::ArmRecording r = robot::simulateArm(arm, s, [&](double share) {
@@ -355,9 +354,9 @@ struct BenchOptions {
   int samples = 2000, threads = 1;
 };
 
-// Latency of estimating sample by sample: for each sample, the model's estimate from the joint
-// states of the last `history` samples only (what an online estimator recomputes per sample, with
-// nothing cached), timed one by one.
+// Latency of estimating sample by sample: for each sample, the model's wrench at that sample from
+// the joint states of the last `history` samples only (the network sees one input row; a base
+// model recomputes the window's rows, nothing is cached between samples), timed one by one.
 int runBench(const BenchOptions& o) {
   if (o.samples < 10) throw Error("--samples: at least 10");
   learning::setTorchThreads(o.threads);
@@ -379,9 +378,9 @@ int runBench(const BenchOptions& o) {
     slice.series.t.assign(r.joints.series.t.begin() + i, r.joints.series.t.begin() + i + history);
     slice.series.values = r.joints.series.values.middleRows(i, history);
     const auto t0 = std::chrono::steady_clock::now();
-    const Eigen::MatrixXd w = model.wrenches(slice);
+    const robot::Vector6d w = model.lastWrench(slice);
     micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
-    sink += w(history - 1, 0);
+    sink += w[0];
   }
   std::sort(micros.begin(), micros.end());
   auto at = [&](double share) { return micros[static_cast<size_t>(share * static_cast<double>(micros.size() - 1))]; };

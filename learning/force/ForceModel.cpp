@@ -45,6 +45,26 @@ Eigen::MatrixXd ForceModel::freeSpaceEfforts(const robot::JointStateLog& log) co
   return out;
 }
 
+Eigen::VectorXd ForceModel::lastFreeSpaceEffort(const robot::JointStateLog& log) const {
+  if (log.samples() == 0) throw Error(log.series.source + ": no samples");
+  if (kind == "physical") return physical->predict(log).bottomRows(1).transpose();
+  if (kind != "network") throw Error("a " + kind + " force model predicts no free-space efforts");
+  Eigen::VectorXd out = network->predict(networkInputs(log).bottomRows(1)).cast<double>().transpose();
+  if (base) out += base->lastFreeSpaceEffort(log);
+  return out;
+}
+
+robot::Vector6d ForceModel::lastWrench(const robot::JointStateLog& log, double damping) const {
+  robot::Vector6d w = robot::Vector6d::Zero();
+  if (kind == "direct") {
+    w.head(wrenchOutputs) = network->predict(networkInputs(log).bottomRows(1)).cast<double>().transpose();
+    return w;
+  }
+  const Eigen::VectorXd q = log.q().bottomRows(1).transpose();
+  const Eigen::VectorXd external = log.effort().bottomRows(1).transpose() - lastFreeSpaceEffort(log);
+  return robot::wrenchFromExternalEfforts(robot::psmLargeNeedleDriver().spatialJacobian(q), external, damping);
+}
+
 Eigen::MatrixXd ForceModel::wrenches(const robot::JointStateLog& log, const Eigen::MatrixXd* jacobian, double damping) const {
   const int n = log.samples();
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(n, 6);

@@ -48,6 +48,11 @@ class ForceModel {
   Eigen::MatrixXd wrenches(const robot::JointStateLog& log, const Eigen::MatrixXd* jacobian = nullptr,
                            double damping = 1e-3) const;
 
+  // The estimate at the log's last sample only (what an online estimator computes each sample):
+  // the network sees one input row, a base model the rows that row's window needs.
+  Eigen::VectorXd lastFreeSpaceEffort(const robot::JointStateLog& log) const;
+  robot::Vector6d lastWrench(const robot::JointStateLog& log, double damping = 1e-3) const;
+
   // The network's input rows for a log (samples x window * features): the window ends at each
   // sample, padded with the first sample at the log's start.
   Eigen::MatrixXf networkInputs(const robot::JointStateLog& log) const;

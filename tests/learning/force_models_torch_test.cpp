@@ -137,6 +137,9 @@ TEST(ForceModel, CorrectionLearnsTheTrocarsShareOnTopOfItsBase) {
   ASSERT_TRUE(loaded.base);
   EXPECT_EQ(loaded.freeSpaceEfforts(trocarTest), corrected.freeSpaceEfforts(trocarTest));
   EXPECT_NE(loaded.freeSpaceEfforts(trocarTest), physical.freeSpaceEfforts(trocarTest));
+  // The online estimate at the last sample is the batch estimate's last row.
+  const Eigen::VectorXd last = loaded.freeSpaceEfforts(trocarTest).bottomRows(1).transpose();
+  EXPECT_LT((loaded.lastFreeSpaceEffort(trocarTest) - last).norm(), 1e-6 * (1 + last.norm()));
   // Yaw and pitch carry the body wall's push, which the base never saw: base plus correction must
   // meet the efforts it was trained on much better than the base alone (how well a correction
   // carries over to other motion is measured on minutes of data, not in a unit test).
