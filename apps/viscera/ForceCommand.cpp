@@ -423,12 +423,13 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   auto t = std::make_shared<TrainOptions>();
   auto* train = cmd->add_subcommand("train", "identify or train a force model on recordings");
   train->footer(
-      "Kinds: physical (least-squares identification of the arm's dynamic parameters), mlp (one network per joint,\n"
-      "12-100-1, Table 2-4), snn (one network for all joints), lstm (per joint, LSTM 64 over 10 samples + two layers), correction (the\n"
-      "trocar correction: window 30 of joint states plus the --base model's prediction, 256 hidden, learns the base's\n"
-      "residual), direct (window of joint velocities and efforts to the tip force; needs wrench.csv). mlp and lstm\n"
-      "with --base learn the base's residual. DATA: recording folders (joints.csv, wrench.csv) or joint logs; free-space\n"
-      "kinds take every sample's effort as free-space dynamics. Logs are resampled to --rate.");
+      "Kinds: physical (least-squares identification of the arm's dynamic parameters), mlp (one network per\n"
+      "joint, 12-100-1, Table 2-4), snn (one network for all joints), lstm (per joint, LSTM 64 over 10 samples\n"
+      "and two layers), correction (the trocar correction: window 30 of joint states plus the --base model's\n"
+      "prediction, 256 hidden, learns the base's residual), direct (window of joint velocities and efforts to\n"
+      "the tip force; needs wrench.csv). mlp and lstm with --base learn the base's residual. DATA: recording\n"
+      "folders (joints.csv, wrench.csv) or joint logs; free-space kinds take every sample's effort as\n"
+      "free-space dynamics. Logs are resampled to --rate.");
   train->add_option("data", t->data, "recordings")->required();
   train->add_option("--out", t->out, "model folder")->required();
   train->add_option("--kind", t->spec.kind, "physical, mlp, snn, lstm, correction or direct")->capture_default_str();

@@ -107,6 +107,8 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   }
 
   if (k == "physical") {
+    if (spec.window > 0 || spec.hidden > 0 || spec.epochs > 0 || !spec.base.empty())
+      throw Error("--window, --hidden, --epochs and --base are for networks; the physical model is identified by least squares");
     model.kind = "physical";
     model.description = "physical model (least-squares identification)";
     say("identifying " + std::to_string(robot::PhysicalModel::parameterCount(dof)) + " parameters");
@@ -158,6 +160,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   } else {
     throw Error("--kind: " + viscera::quoted(k) + " is not one of physical, mlp, snn, lstm, correction, direct");
   }
+  if (!spec.forces && k != "direct") throw Error("--wrench: only a direct model estimates the wrench itself");
   if (spec.window > 0) a.window = spec.window;
   if (spec.hidden > 0) a.hidden = spec.hidden;
   o.epochs = spec.epochs > 0 ? spec.epochs : defaultEpochs;
