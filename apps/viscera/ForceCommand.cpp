@@ -372,11 +372,7 @@ int runBench(const BenchOptions& o) {
   micros.reserve(static_cast<size_t>(o.samples));
   double sink = 0;
   for (int i = 0; i < o.samples; ++i) {
-    robot::JointStateLog slice;
-    slice.dof = model.dof;
-    slice.series.source = r.name;
-    slice.series.t.assign(r.joints.series.t.begin() + i, r.joints.series.t.begin() + i + history);
-    slice.series.values = r.joints.series.values.middleRows(i, history);
+    const robot::JointStateLog slice = robot::sliceLog(r.joints, i, i + history);
     const auto t0 = std::chrono::steady_clock::now();
     const robot::Vector6d w = model.lastWrench(slice);
     micros.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());

@@ -52,22 +52,7 @@ Eigen::MatrixXd wrenchAtJoints(const ForceRecording& r) {
 
 namespace {
 
-robot::JointStateLog slice(const robot::JointStateLog& log, int begin, int end) {
-  robot::JointStateLog out;
-  out.dof = log.dof;
-  out.series.source = log.series.source;
-  out.series.names = log.series.names;
-  out.series.t.assign(log.series.t.begin() + begin, log.series.t.begin() + end);
-  out.series.values = log.series.values.middleRows(begin, end - begin);
-  return out;
-}
-
-struct Split {
-  RegressorData train, validation;
-};
-
-// Rows [0, cut) of each recording train, [cut, end) validate: a split in time, so that validation
-// samples are not neighbours of training ones.
+// Rows appended below a matrix's (which may be empty).
 void append(Eigen::MatrixXf& to, const Eigen::MatrixXf& rows) {
   Eigen::MatrixXf joined(to.rows() + rows.rows(), rows.cols());
   if (to.rows() > 0) joined.topRows(to.rows()) = to;
@@ -90,6 +75,8 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
     if (progress) progress({s});
   };
 
+  // Samples [0, cut) of each recording train and [cut, end) validate: a split in time, so that
+  // validation samples are not neighbours of training ones.
   std::vector<robot::JointStateLog> trainLogs, validationLogs;
   std::vector<Eigen::MatrixXd> trainWrench, validationWrench;
   for (const ForceRecording& r : recordings) {
@@ -97,8 +84,8 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
     const int n = r.joints.samples();
     const int cut = static_cast<int>(std::lround(n * (1 - spec.validation)));
     if (cut < 2) throw Error(r.name + ": too short to train on (" + std::to_string(n) + " samples)");
-    trainLogs.push_back(slice(r.joints, 0, cut));
-    if (cut < n) validationLogs.push_back(slice(r.joints, cut, n));
+    trainLogs.push_back(robot::sliceLog(r.joints, 0, cut));
+    if (cut < n) validationLogs.push_back(robot::sliceLog(r.joints, cut, n));
     if (k == "direct") {
       const Eigen::MatrixXd w = wrenchAtJoints(r);
       trainWrench.push_back(w.topRows(cut));
@@ -182,7 +169,9 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   a.outputs = k == "direct" ? (spec.forces ? 3 : 6) : dof;
   model.wrenchOutputs = a.outputs;
 
-  Split data;
+  struct {
+    RegressorData train, validation;
+  } data;
   auto fill = [&](const std::vector<robot::JointStateLog>& logs, const std::vector<Eigen::MatrixXd>& wrenches, RegressorData& d) {
     for (size_t i = 0; i < logs.size(); ++i) {
       append(d.x, model.networkInputs(logs[i]));

@@ -164,6 +164,18 @@ const std::vector<std::string> kWrenchNames = {"Fx", "Fy", "Fz", "Tx", "Ty", "Tz
 
 }  // namespace
 
+JointStateLog sliceLog(const JointStateLog& log, int begin, int end) {
+  if (begin < 0 || end > log.samples() || begin > end) throw Error(log.series.source + ": no samples " + std::to_string(begin) + " to " + std::to_string(end));
+  JointStateLog out;
+  out.dof = log.dof;
+  out.series.source = log.series.source;
+  out.series.names = log.series.names;
+  out.series.t.assign(log.series.t.begin() + begin, log.series.t.begin() + end);
+  out.series.values = log.series.values.middleRows(begin, end - begin);
+  if (!log.series.lines.empty()) out.series.lines.assign(log.series.lines.begin() + begin, log.series.lines.begin() + end);
+  return out;
+}
+
 JointStateLog makeJointStateLog(std::vector<double> t, const Eigen::MatrixXd& q, const Eigen::MatrixXd& qd,
                                 const Eigen::MatrixXd& effort, const std::string& source) {
   const int n = static_cast<int>(q.cols());

@@ -43,6 +43,9 @@ struct JointStateLog {
   auto effort() const { return series.values.rightCols(dof); }
 };
 
+// Samples [begin, end) of a log.
+JointStateLog sliceLog(const JointStateLog& log, int begin, int end);
+
 JointStateLog makeJointStateLog(std::vector<double> t, const Eigen::MatrixXd& q, const Eigen::MatrixXd& qd,
                                 const Eigen::MatrixXd& effort, const std::string& source = "");
 
