@@ -20,6 +20,8 @@
 #include "apps/viscera/Gnuplot.h"
 #include "core/Error.h"
 #include "core/Files.h"
+#include "core/Text.h"
+#include "learning/ArmScene.h"
 #include "learning/force/ForceTraining.h"
 #include "learning/nn/Stepper.h"
 #include "robot/dynamics/ArmSimulator.h"
@@ -64,7 +66,7 @@ void writeFolderAtomically(const std::string& out, Write write) {
 // ---------------------------------------------------------------- simulate
 
 struct SimulateOptions {
-  std::string out, workspace = "full";
+  std::string out, workspace = "full", scene, transform, instrument, depth;
   double duration = 60, rate = 1000, stiffness = 600;
   std::uint64_t seed = 1;
   bool trocar = false, seal = false, phantom = false, noNoise = false, jacobian = false;
@@ -91,6 +93,29 @@ int runSimulate(const SimulateOptions& o) {
     throw Error("--workspace: " + viscera::quoted(o.workspace) + " is neither full nor trocar");
   }
   if (o.noNoise) s.measurement.makePerfect();
+  if (!o.depth.empty()) {
+    const std::vector<std::string> w = cli::words(o.depth);
+    const size_t colon = o.depth.find(':');
+    double lo = NAN, hi = NAN;
+    if (colon != std::string::npos && w.size() == 1) {
+      parseNumber(o.depth.substr(0, colon), lo);
+      parseNumber(o.depth.substr(colon + 1), hi);
+    }
+    if (!(lo >= 0 && hi >= lo)) throw Error("--depth: " + viscera::quoted(o.depth) + " is not MIN:MAX with 0 <= MIN <= MAX (m)");
+    s.excitation.minDepth = lo;
+    s.excitation.maxDepth = hi;
+  }
+  // A Viscera scene as the environment: its tissue's contact force is the truth; the palpations
+  // aim at its body's face towards the arm.
+  std::unique_ptr<learning::SceneEnvironment> scene;
+  if (!o.scene.empty()) {
+    if (o.transform.empty()) throw Error("--scene: needs --transform (robot base -> scene, as PsmJointDriver takes it)");
+    scene = std::make_unique<learning::SceneEnvironment>(o.scene, o.transform, o.instrument);
+    s.phantom = scene->palpationSurface();
+    s.environment = [&scene](double t, const Eigen::Isometry3d& tip, const robot::Vector6d& twist) {
+      return (*scene)(t, tip, twist);
+    };
+  }
   const auto t0 = std::chrono::steady_clock::now();
   int lastPercent = -1;
   const robot::ArmRecording r = robot::simulateArm(arm, s, [&](double share) {
@@ -123,7 +148,14 @@ int runSimulate(const SimulateOptions& o) {
                                 {"phantom", o.phantom},
                                 {"noise", !o.noNoise},
                                 {"samples", r.samples()}};
-    if (o.phantom) j["phantomStiffness"] = o.stiffness;
+    if (o.phantom && !scene) j["phantomStiffness"] = o.stiffness;
+    if (scene) {
+      j["scene"] = o.scene;
+      j["transform"] = o.transform;
+      j["sceneSteps"] = scene->steps();
+      j["palpatedSurface"] = {{"point", {s.phantom.point.x(), s.phantom.point.y(), s.phantom.point.z()}},
+                              {"normal", {s.phantom.normal.x(), s.phantom.normal.y(), s.phantom.normal.z()}}};
+    }
     j["files"] = {{"joints.csv", "measured joint states t,q1..q6,qd1..qd6,tau1..tau6 (rad, m, rad/s, m/s, N m, N)"},
                   {"wrench.csv", "true tip wrench the tool applies to the environment, base frame (N, N m)"},
                   {"truth.csv", "efforts: free-space dynamics, trocar (wall and seal), external J^T F; true tip position (m)"}};
@@ -410,7 +442,14 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   sim->add_flag("--trocar", s->trocar, "the body wall holds the shaft near the remote centre");
   sim->add_flag("--seal", s->seal, "the cannula seal's friction on insertion and roll");
   sim->add_flag("--phantom", s->phantom, "a compliant phantom under the tool, palpated");
-  sim->add_option("--stiffness", s->stiffness, "the phantom's stiffness (N/m)")->capture_default_str();
+  auto* stiffness = sim->add_option("--stiffness", s->stiffness, "the phantom's stiffness (N/m)")->capture_default_str();
+  auto* sceneOption = sim->add_option("--scene", s->scene, "a Viscera scene as the environment: its instrument (without a driver) "
+                                                          "follows the tip, its contact wrench is the true force; palpates its body")
+                          ->excludes(stiffness);
+  sim->add_option("--transform", s->transform, "robot base -> scene transform file (with --scene)")->needs(sceneOption);
+  sim->add_option("--instrument", s->instrument, "the scene's instrument (a Rigid3d MechanicalObject's name)")->needs(sceneOption);
+  sim->add_option("--depth", s->depth, "MIN:MAX commanded depth of the palpations below the surface (m; the tip's centre; "
+                                       "default 0.004:0.018)");
   sim->add_flag("--no-noise", s->noNoise, "perfect sensors: no noise, no backlash");
   sim->add_flag("--jacobian", s->jacobian, "also write jacobian.csv (the Jacobian at each sample; large)");
   sim->add_option("--digits", s->digits, "significant digits of the written values")->capture_default_str();

@@ -126,8 +126,15 @@ class Reference {
         Eigen::VectorXd pressed = above;
         above[2] = touch - clearance / -along;
         pressed[2] = touch + (e.minDepth + (e.maxDepth - e.minDepth) * u01(rng)) / -along;
-        // Too grazing, or the surface is out of the insertion's reach: draw again.
-        if (!(along < -0.3) || above[2] < e.lower[2] || pressed[2] > e.upper[2]) {
+        // Too grazing, the surface out of the insertion's reach, or off the phantom: draw again.
+        bool off = false;
+        if (ph.radius > 0 && along < 0) {
+          Eigen::VectorXd touching = above;
+          touching[2] = touch;
+          const Eigen::Vector3d d = arm.chain().tipPose(touching).translation() - ph.point;
+          off = (d - d.dot(ph.normal) * ph.normal).norm() > ph.radius;
+        }
+        if (off || !(along < -0.3) || above[2] < e.lower[2] || pressed[2] > e.upper[2]) {
           ++misses;
           continue;
         }
@@ -197,11 +204,12 @@ struct Environment {
 };
 
 Environment environment(const ArmDynamics& arm, const ArmSimulationOptions& o, const Eigen::VectorXd& q,
-                        const Eigen::VectorXd& qd) {
+                        const Eigen::VectorXd& qd, const Vector6d& held) {
   const int n = arm.dof();
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
   Environment env{zero, zero, zero, zero};
-  if (!o.trocar.enabled && !o.phantom.enabled && !o.seal.enabled) return env;
+  const bool analyticPhantom = o.phantom.enabled && !o.environment;
+  if (!o.trocar.enabled && !analyticPhantom && !o.seal.enabled && !o.environment) return env;
   const ChainPose pose = arm.chain().forwardKinematics(q);
   Jacobian J(6, n);
   arm.chain().spatialJacobian(pose.frames, pose.tip, J);
@@ -230,7 +238,10 @@ Environment environment(const ArmDynamics& arm, const ArmSimulationOptions& o, c
     env.trocarSlope[2] += o.seal.axial.slope(qd[2]);
     env.trocarSlope[3] += o.seal.roll.slope(qd[3]);
   }
-  if (o.phantom.enabled) {
+  if (o.environment) {
+    env.wrench = held;
+    env.external = J.transpose() * held;
+  } else if (analyticPhantom) {
     const Phantom& ph = o.phantom;
     const double depth = -(pose.tip.translation() - ph.point).dot(ph.normal);
     if (depth > 0) {
@@ -302,18 +313,36 @@ ArmRecording simulateArm(const ArmDynamics& arm, const ArmSimulationOptions& o,
   for (int i = 0; i < n; ++i) integral[i] = ki[i] > 0 ? hold[i] / ki[i] : 0;
   // The efforts of the last step, split as in Eq. 2.4; at t = 0 the arm is at rest.
   Eigen::VectorXd free = arm.inverseDynamics(q, qd, Eigen::VectorXd::Zero(n));
-  Environment env = environment(arm, o, q, qd);
+  Vector6d held = Vector6d::Zero();  // the external environment's wrench over the current sample
+  auto tipMotion = [&](Eigen::Isometry3d& tip, Vector6d& twist) {
+    tip = arm.chain().tipPose(q);
+    twist = arm.chain().spatialJacobian(q) * qd;
+  };
+  if (o.environment) {
+    Eigen::Isometry3d tip;
+    Vector6d twist;
+    tipMotion(tip, twist);
+    held = o.environment(0, tip, twist);
+  }
+  Environment env = environment(arm, o, q, qd, held);
   Eigen::VectorXd trocar = env.trocar, external = env.external;
   const double h = 1 / (o.rate * o.substeps);
 
   for (int s = 0; s < samples; ++s) {
     const double t = s / o.rate;
+    if (s > 0 && o.environment) {
+      Eigen::Isometry3d tip;
+      Vector6d twist;
+      tipMotion(tip, twist);
+      held = o.environment((s - 1) / o.rate, tip, twist);  // the state is still the previous sample's
+      if (!held.allFinite()) throw Error("arm simulation: the environment's wrench is not finite at t = " + std::to_string(t) + " s");
+    }
     for (int k = 0; s > 0 && k < o.substeps; ++k) {
       const double tk = t - (o.substeps - 1 - k) * h;
       reference.at(tk, qRef, qdRef);
       const Eigen::MatrixXd M = arm.massMatrix(q);
       const Eigen::VectorXd bias = arm.bias(q, qd);
-      env = environment(arm, o, q, qd);
+      env = environment(arm, o, q, qd, held);
       Eigen::VectorXd friction(n), slope(n);
       for (int i = 0; i < n; ++i) {
         friction[i] = arm.friction()[i].effort(qd[i]);
@@ -337,7 +366,7 @@ ArmRecording simulateArm(const ArmDynamics& arm, const ArmSimulationOptions& o,
     if (!q.allFinite() || !qd.allFinite())
       throw Error("arm simulation: the state diverged at t = " + std::to_string(t) + " s");
     const Eigen::VectorXd motor = free + trocar + external;
-    env = environment(arm, o, q, qd);
+    env = environment(arm, o, q, qd, held);
     rec.t[s] = t;
     rec.qTrue.row(s) = q;
     rec.qdTrue.row(s) = qd;

@@ -38,7 +38,8 @@ struct CannulaSeal {
 };
 
 // A compliant phantom below the tool tip: a half-space with a linear spring, damping and
-// regularised Coulomb friction. Its stiffness is the truth of stiffness identification.
+// regularised Coulomb friction. Its stiffness is the truth of stiffness identification. With an
+// external environment (ArmSimulationOptions::environment) its plane only places the palpations.
 struct Phantom {
   bool enabled = false;
   Eigen::Vector3d point{0.0, 0.0, -0.15};  // m, on the surface (base frame)
@@ -46,6 +47,7 @@ struct Phantom {
   double stiffness = 600;  // N/m
   double damping = 5;      // N s/m
   double friction = 0.3;   // Coulomb coefficient
+  double radius = 0;       // m: palpations press within this distance of `point` (0: anywhere)
 };
 
 // What the robot's sensors do to the truth.
@@ -78,6 +80,11 @@ struct Excitation {
   double minDepth = 0.004, maxDepth = 0.018;  // m, commanded depth below the surface
 };
 
+// The tool's wrench on an environment the simulator does not model itself (a Viscera scene), for
+// the tip's pose and twist (v, omega; base frame, m, rad) at time t: (force, torque about the tip),
+// base frame, N and N m. Called once per sample; the wrench is held over the sample's steps.
+using ArmEnvironment = std::function<Vector6d(double t, const Eigen::Isometry3d& tip, const Vector6d& twist)>;
+
 struct ArmSimulationOptions {
   double duration = 60;  // s
   double rate = 1000;    // samples per second
@@ -89,6 +96,7 @@ struct ArmSimulationOptions {
   MeasurementModel measurement;
   JointGains gains;
   Excitation excitation;
+  ArmEnvironment environment;  // none: the analytic phantom (when enabled) is the environment
 };
 
 // Everything sampled, in columns of `samples` rows (row-major n-wide blocks per quantity).
