@@ -39,42 +39,64 @@ using learning::ForceRecording;
 const char* kAxes[] = {"Fx", "Fy", "Fz", "Tx", "Ty", "Tz"};
 
 // An output folder: its parent exists, and it is a folder when it exists (replaced whole).
-void requireOutputFolder(const std::string& path, const std::string& option, const std::vector<std::string>& inputs) {
+// An output folder: its parent exists; it is not, and does not hold, one of the inputs; and when it
+// exists it is a folder this command wrote before (it holds `marker`), since it is replaced whole.
+void requireOutputFolder(const std::string& path, const std::string& option, const std::vector<std::string>& inputs,
+                         const std::string& marker) {
   const fs::path parent = fs::path(path).parent_path();
   std::error_code ec;
   if (!parent.empty() && !fs::is_directory(parent, ec)) throw Error(SourceLoc{path}, option + ": the folder " + parent.string() + " does not exist");
   const auto st = fs::symlink_status(path, ec);
   if (fs::is_symlink(st)) throw Error(SourceLoc{path}, option + ": is a symbolic link, and outputs do not follow links");
   if (fs::exists(st) && !fs::is_directory(st)) throw Error(SourceLoc{path}, option + ": is a file, not a folder");
-  cli::requireNotAnInput(path, option, inputs);
+  const fs::path out = fs::weakly_canonical(path, ec);
+  for (const std::string& in : inputs) {
+    const fs::path p = fs::weakly_canonical(in, ec);
+    const auto [a, b] = std::mismatch(out.begin(), out.end(), p.begin(), p.end());
+    if (a == out.end()) throw Error(SourceLoc{path}, option + ": holds the input " + in + ", and the output folder is replaced whole");
+  }
+  if (fs::is_directory(st) && !fs::is_empty(path, ec) && !fs::exists(fs::path(path) / marker))
+    throw Error(SourceLoc{path}, option + ": is a folder with other contents (no " + marker + "); it would be replaced whole, so name a new folder");
 }
 
-// A folder written whole or not at all: built beside its place, then swapped in.
+// A folder written whole or not at all: built beside its place, then swapped in. File-system
+// failures (a read-only parent, no space) are input errors naming the folder; the partial folder
+// is removed.
 template <class Write>
 void writeFolderAtomically(const std::string& out, Write write) {
   const fs::path target(out), partial(out + ".partial"), old(out + ".old");
-  fs::remove_all(partial);
-  write(partial.string());
-  if (fs::exists(target)) {
+  try {
+    fs::remove_all(partial);
+    write(partial.string());
+    if (fs::exists(target)) {
+      fs::remove_all(old);
+      fs::rename(target, old);
+    }
+    fs::rename(partial, target);
     fs::remove_all(old);
-    fs::rename(target, old);
+  } catch (const fs::filesystem_error& e) {
+    std::error_code ec;
+    fs::remove_all(partial, ec);
+    throw Error(SourceLoc{out}, std::string("cannot write the folder: ") + e.code().message());
+  } catch (...) {
+    std::error_code ec;
+    fs::remove_all(partial, ec);
+    throw;
   }
-  fs::rename(partial, target);
-  fs::remove_all(old);
 }
 
 // ---------------------------------------------------------------- simulate
 
 struct SimulateOptions {
   std::string out, workspace = "full", scene, transform, instrument, depth;
-  double duration = 60, rate = 1000, stiffness = 600;
+  double duration = 60, rate = 1000, stiffness = 0;  // 0: the phantom's default
   std::uint64_t seed = 1;
   bool trocar = false, seal = false, phantom = false, noNoise = false, jacobian = false;
   int digits = 10;
 };
 
 int runSimulate(const SimulateOptions& o) {
-  requireOutputFolder(o.out, "out", {});
+  requireOutputFolder(o.out, "out", {o.scene, o.transform}, "simulation.json");
   const robot::ArmDynamics arm = robot::psmDynamics();
   robot::ArmSimulationOptions s = robot::psmSimulationDefaults();
   s.duration = o.duration;
@@ -83,8 +105,12 @@ int runSimulate(const SimulateOptions& o) {
   s.trocar.enabled = o.trocar;
   s.seal.enabled = o.seal;
   s.phantom.enabled = o.phantom;
-  if (!(o.stiffness > 0)) throw Error("--stiffness: must be positive (N/m)");
-  s.phantom.stiffness = o.stiffness;
+  if (o.stiffness != 0) {
+    if (!o.phantom) throw Error("--stiffness: is the phantom's; add --phantom");
+    if (!(o.stiffness > 0)) throw Error("--stiffness: must be positive (N/m)");
+    s.phantom.stiffness = o.stiffness;
+  }
+  if (!o.depth.empty() && !o.phantom && o.scene.empty()) throw Error("--depth: is the palpations'; add --phantom or --scene");
   if (o.workspace == "trocar") {
     // Inside a patient the body limits the outer joints (dissertation Fig. 2-22).
     s.excitation.lower = {-0.4, -0.3, 0.10, -1.5, -0.8, -0.8};
@@ -145,10 +171,10 @@ int runSimulate(const SimulateOptions& o) {
                                 {"workspace", o.workspace},
                                 {"trocar", o.trocar},
                                 {"seal", o.seal},
-                                {"phantom", o.phantom},
+                                {"phantom", o.phantom ? "analytic half-space" : scene ? "the scene" : "none"},
                                 {"noise", !o.noNoise},
                                 {"samples", r.samples()}};
-    if (o.phantom && !scene) j["phantomStiffness"] = o.stiffness;
+    if (o.phantom) j["phantomStiffness"] = s.phantom.stiffness;
     if (scene) {
       j["scene"] = o.scene;
       j["transform"] = o.transform;
@@ -188,7 +214,7 @@ std::vector<ForceRecording> readRecordings(const std::vector<std::string>& paths
 int runTrain(const TrainOptions& o) {
   std::vector<std::string> inputs = o.data;
   if (!o.spec.base.empty()) inputs.push_back(o.spec.base);
-  requireOutputFolder(o.out, "--out", inputs);
+  requireOutputFolder(o.out, "--out", inputs, "force.json");
   if (!(o.spec.rate > 0)) throw Error("--rate: must be positive");
   if (o.threads > 0 && o.spec.kind != "physical") learning::setTorchThreads(o.threads);
   const auto recordings = readRecordings(o.data, o.columns, o.spec.rate);
@@ -231,7 +257,8 @@ std::string percent(double v) {
 int runEval(const EvalOptions& o) {
   std::vector<std::string> inputs = o.data;
   inputs.push_back(o.model);
-  requireOutputFolder(o.out, "--out", inputs);
+  requireOutputFolder(o.out, "--out", inputs, "eval.json");
+  if (o.threshold < 0) throw Error("--threshold: a force in N, >= 0 (0: from the forces)");
   if (o.threads > 0) learning::setTorchThreads(o.threads);
   const ForceModel model = ForceModel::load(o.model);
   const auto recordings = readRecordings(o.data, o.columns, model.rate);
@@ -370,6 +397,8 @@ int runEstimate(const EstimateOptions& o) {
   cli::requireParentFolder(o.out, "--out");
   cli::requireNotAnInput(o.out, "--out", {o.log, o.jacobian});
   const ForceModel model = ForceModel::load(o.model);
+  if (!(o.damping >= 0)) throw Error("--damping: must be >= 0");
+  if (model.kind == "direct" && !o.jacobian.empty()) throw Error("--jacobian: a direct model estimates the force without one");
   ForceRecording raw{o.log, robot::readJointStateLog(o.log, model.dof, o.columns), {}, {}};
   if (!o.jacobian.empty()) raw.jacobian = robot::readJacobianCsv(o.jacobian, model.dof);
   const ForceRecording r = learning::resampleRecording(raw, model.rate);
@@ -442,7 +471,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   sim->add_flag("--trocar", s->trocar, "the body wall holds the shaft near the remote centre");
   sim->add_flag("--seal", s->seal, "the cannula seal's friction on insertion and roll");
   sim->add_flag("--phantom", s->phantom, "a compliant phantom under the tool, palpated");
-  auto* stiffness = sim->add_option("--stiffness", s->stiffness, "the phantom's stiffness (N/m)")->capture_default_str();
+  auto* stiffness = sim->add_option("--stiffness", s->stiffness, "the phantom's stiffness (N/m; default 600)");
   auto* sceneOption = sim->add_option("--scene", s->scene, "a Viscera scene as the environment: its instrument (without a driver) "
                                                           "follows the tip, its contact wrench is the true force; palpates its body")
                           ->excludes(stiffness);
@@ -452,7 +481,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
                                        "default 0.004:0.018)");
   sim->add_flag("--no-noise", s->noNoise, "perfect sensors: no noise, no backlash");
   sim->add_flag("--jacobian", s->jacobian, "also write jacobian.csv (the Jacobian at each sample; large)");
-  sim->add_option("--digits", s->digits, "significant digits of the written values")->capture_default_str();
+  sim->add_option("--digits", s->digits, "significant digits of the written values (1 to 17)")->check(CLI::Range(1, 17))->capture_default_str();
   sim->callback([s, &action] { action = [s] { return runSimulate(*s); }; });
 
   auto t = std::make_shared<TrainOptions>();
@@ -505,7 +534,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   est->add_option("log", x->log, "joint state log (t,q1..q6,qd1..qd6,tau1..tau6)")->required();
   est->add_option("--out", x->out, "wrench CSV (t,Fx,Fy,Fz,Tx,Ty,Tz) at the model's rate")->required();
   est->add_option("--columns", x->columns, "column map of the joint log");
-  est->add_option("--jacobian", x->jacobian, "Jacobian log (t,J11..J66) instead of the PSM's kinematics");
+  est->add_option("--jacobian", x->jacobian, "Jacobian log (t,J1_1..J6_6, row-major) instead of the PSM's kinematics");
   est->add_option("--damping", x->damping, "damping of the pseudo-inverse J^-T")->capture_default_str();
   est->callback([x, &action] { action = [x] { return runEstimate(*x); }; });
 

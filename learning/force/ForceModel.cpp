@@ -135,7 +135,10 @@ ForceModel ForceModel::load(const std::string& folder) {
       m.physical = robot::PhysicalModel::fromJson(readInputFile(p, "physical model"), p, robot::psmDynamics());
     } else if (m.kind == "network" || m.kind == "direct") {
       m.network = Regressor::load((fs::path(folder) / j.at("network").get<std::string>()).string());
-      if (m.kind == "direct") m.wrenchOutputs = j.at("wrenchOutputs").get<int>();
+      if (m.kind == "direct") {
+        m.wrenchOutputs = j.at("wrenchOutputs").get<int>();
+        if (m.wrenchOutputs != 3 && m.wrenchOutputs != 6) throw Error(path + ": wrenchOutputs must be 3 (force) or 6 (wrench)");
+      }
     } else {
       throw Error(path + ": unknown kind " + viscera::quoted(m.kind) + " (physical, network or direct)");
     }

@@ -37,9 +37,8 @@ ForceRecording resampleRecording(const ForceRecording& r, double rate) {
   const std::vector<double> times = robot::uniformTimes(start, end, rate);
   ForceRecording out;
   out.name = r.name;
-  // Joint states: box-averaged over each new period, then at the common times.
-  robot::Series averaged = robot::resample(r.joints.series, rate, true);
-  out.joints = robot::JointStateLog{r.joints.dof, robot::interpolate(averaged, times)};
+  // Joint states: box-averaged over each new period, centred on the common times.
+  out.joints = robot::JointStateLog{r.joints.dof, robot::averageAt(r.joints.series, times, 1 / rate)};
   if (r.wrench) out.wrench = robot::interpolate(*r.wrench, times);
   if (r.jacobian) out.jacobian = robot::interpolate(*r.jacobian, times);
   return out;

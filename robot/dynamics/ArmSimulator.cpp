@@ -291,6 +291,9 @@ ArmRecording simulateArm(const ArmDynamics& arm, const ArmSimulationOptions& o,
   Reference reference(arm, o, rng);
   std::normal_distribution<double> gauss(0, 1);
 
+  constexpr double maxSamples = 1e8;  // 28 hours at 1 kHz; the recording is held in memory
+  if (o.duration * o.rate >= maxSamples)
+    throw Error("arm simulation: " + std::to_string(o.duration * o.rate) + " samples; at most 1e8 in one recording");
   const int samples = static_cast<int>(std::floor(o.duration * o.rate)) + 1;
   ArmRecording rec;
   rec.dof = n;

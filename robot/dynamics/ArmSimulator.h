@@ -99,7 +99,7 @@ struct ArmSimulationOptions {
   ArmEnvironment environment;  // none: the analytic phantom (when enabled) is the environment
 };
 
-// Everything sampled, in columns of `samples` rows (row-major n-wide blocks per quantity).
+// Everything sampled: one row per sample in each matrix.
 struct ArmRecording {
   int dof = 0;
   std::vector<double> t;

@@ -243,12 +243,13 @@ Series readJacobianCsv(const std::string& path, int dof) {
 }
 
 std::string formatSeries(const Series& s, int digits) {
+  if (digits < 1 || digits > 17) throw Error("values are written with 1 to 17 significant digits, not " + std::to_string(digits));
   std::string out = "t";
   for (const std::string& n : s.names) out += "," + n;
   out += "\n";
   char buffer[32];
   for (int i = 0; i < s.samples(); ++i) {
-    std::snprintf(buffer, sizeof buffer, "%.17g", s.t[i]);
+    std::snprintf(buffer, sizeof buffer, "%.17g", s.t[i]);  // 17 digits: at most 24 characters
     out += buffer;
     for (Eigen::Index c = 0; c < s.values.cols(); ++c) {
       std::snprintf(buffer, sizeof buffer, ",%.*g", digits, s.values(i, c));
@@ -299,29 +300,37 @@ std::vector<double> uniformTimes(double start, double end, double rate) {
   if (!(rate > 0) || !(end >= start)) throw Error("resampling: needs a positive rate and end >= start");
   const auto count = static_cast<long long>(std::floor((end - start) * rate + 1e-6)) + 1;
   std::vector<double> t(static_cast<size_t>(count));
-  for (long long i = 0; i < count; ++i) t[static_cast<size_t>(i)] = start + static_cast<double>(i) / rate;
+  // The last time may pass `end` by rounding: it is held at `end`, which every log spanning
+  // [start, end] covers.
+  for (long long i = 0; i < count; ++i) t[static_cast<size_t>(i)] = std::min(end, start + static_cast<double>(i) / rate);
   return t;
 }
 
-Series resample(const Series& s, double rate, bool average) {
+Series averageAt(const Series& s, const std::vector<double>& times, double period) {
   if (s.samples() == 0) throw Error(s.source + ": no samples");
-  const std::vector<double> times = uniformTimes(s.t.front(), s.t.back(), rate);
-  if (!average) return interpolate(s, times);
+  if (!(period > 0)) throw Error("resampling: the period must be positive");
   Series out{s.source, s.names, times, Eigen::MatrixXd(static_cast<Eigen::Index>(times.size()), s.values.cols()), {}};
-  const double half = 0.5 / rate;
+  const double half = 0.5 * period;
   size_t lo = 0;
   for (size_t i = 0; i < times.size(); ++i) {
+    if (i > 0 && times[i] < times[i - 1]) lo = 0;
     while (lo < s.t.size() && s.t[lo] < times[i] - half) ++lo;
     size_t hi = lo;
     Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(s.values.cols());
     while (hi < s.t.size() && s.t[hi] < times[i] + half) sum += s.values.row(static_cast<Eigen::Index>(hi++));
     if (hi > lo) {
       out.values.row(static_cast<Eigen::Index>(i)) = sum / static_cast<double>(hi - lo);
-    } else {  // a gap in the log longer than the new period: interpolate across it
+    } else {  // a gap in the log longer than the period: interpolate across it
       out.values.row(static_cast<Eigen::Index>(i)) = interpolate(s, {times[i]}).values.row(0);
     }
   }
   return out;
+}
+
+Series resample(const Series& s, double rate, bool average) {
+  if (s.samples() == 0) throw Error(s.source + ": no samples");
+  const std::vector<double> times = uniformTimes(s.t.front(), s.t.back(), rate);
+  return average ? averageAt(s, times, 1 / rate) : interpolate(s, times);
 }
 
 JointStateLog resample(const JointStateLog& log, double rate, bool average) {

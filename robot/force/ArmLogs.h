@@ -7,7 +7,7 @@
 //    six joints plus the jaw (a seventh joint, dropped). Other orders: a column map (below) or a
 //    header naming the columns the same way.
 //  - wrench: `t,Fx,Fy,Fz,Tx,Ty,Tz` in N and N m.
-//  - Jacobian: `t,J11,J12,..,J6n` (row-major).
+//  - Jacobian: `t,J1_1,J1_2,..,J6_n` (row-major: row 1's n entries first).
 // A column map lists the file's columns in order: `t`, `qK`, `qdK`, `tauK` (K = 1-based joint) or
 // `-` for a column to skip; e.g. "t,q1,q2,q3,q4,q5,q6,q7,qd1,...". Aliases accepted in headers:
 // time, pos/position K, vel/velocity K, effort/torque K.
@@ -59,7 +59,7 @@ Series readWrenchCsv(const std::string& path);
 Series readJacobianCsv(const std::string& path, int dof = 6);
 
 // CSV text of a series with its names as the header (time column `t`); values with `digits`
-// significant digits (17: read back exactly), times always exactly.
+// (1 to 17, an Error otherwise) significant digits (17: read back exactly), times always exactly.
 std::string formatSeries(const Series& s, int digits = 17);
 // Written atomically.
 void writeSeries(const std::string& path, const Series& s, int digits = 17);
@@ -71,6 +71,9 @@ Series jacobianSeries(std::vector<double> t, const Eigen::MatrixXd& jacobian, in
 Series interpolate(const Series& s, const std::vector<double>& times);
 // Times from `start` to `end` (inclusive within rounding) at `rate` per second.
 std::vector<double> uniformTimes(double start, double end, double rate);
+// Values of `s` at `times`, each the mean of the samples within half a period of it (a box filter
+// against aliasing); interpolated where no sample falls in.
+Series averageAt(const Series& s, const std::vector<double>& times, double period);
 // `s` resampled at `rate` over its own span; with `average` each new sample is the mean of the
 // original samples within half a period of it (a box filter against aliasing) rather than the
 // interpolated value.

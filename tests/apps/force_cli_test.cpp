@@ -78,4 +78,29 @@ TEST(ForceCli, BadLogsExit2NamingFileAndLine) {
   EXPECT_EQ(slurp(dir / "file"), "x");
 }
 
+TEST(ForceCli, OutputFoldersNeverSwallowInputsOrOtherFiles) {
+  TempDir dir("viscera_force_out");
+  fs::create_directories(fs::path(dir / "parent"));
+  RunResult r = runViscera({"force", "simulate", fs::path(dir / "parent") / "rec", "--duration", "3"});
+  ASSERT_EQ(r.rc, 0) << r;
+  // --out above an input: refused, the input kept.
+  r = runViscera({"force", "train", fs::path(dir / "parent") / "rec", "--kind", "physical", "--out", dir / "parent"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("holds the input"), std::string::npos) << r;
+  EXPECT_TRUE(fs::exists(fs::path(dir / "parent") / "rec" / "joints.csv"));
+  // A folder of other things: refused; one the command wrote before: replaced.
+  fs::create_directories(fs::path(dir / "mine"));
+  std::ofstream(fs::path(dir / "mine") / "notes.txt") << "keep";
+  r = runViscera({"force", "simulate", dir / "mine", "--duration", "1"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_EQ(slurp(fs::path(dir / "mine") / "notes.txt"), "keep");
+  r = runViscera({"force", "simulate", fs::path(dir / "parent") / "rec", "--duration", "2"});
+  EXPECT_EQ(r.rc, 0) << r;
+  // Options that would do nothing are refused.
+  r = runViscera({"force", "simulate", dir / "s", "--duration", "1", "--stiffness", "300"});
+  EXPECT_EQ(r.rc, 2) << r;
+  r = runViscera({"force", "simulate", dir / "s", "--duration", "1", "--digits", "40"});
+  EXPECT_EQ(r.rc, 2) << r;
+}
+
 }  // namespace

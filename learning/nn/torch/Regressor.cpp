@@ -307,7 +307,11 @@ std::unique_ptr<Regressor::Impl> loadTorchRegressor(const std::string& folder) {
     a.activation = ar.at("activation").get<std::string>();
     a.perOutput = ar.at("perOutput").get<bool>();
     a.outputScaling = ar.at("outputScaling").get<std::string>();
-    checkArchitecture(a);
+    try {
+      checkArchitecture(a);
+    } catch (const Error& e) {
+      throw Error(SourceLoc{configPath}, e.what());
+    }
     const auto& nm = c.at("normalisation");
     impl = std::make_unique<TorchRegressor>(
         a, floats(nm.at("inputMean"), a.features, "inputMean", configPath),
@@ -316,8 +320,6 @@ std::unique_ptr<Regressor::Impl> loadTorchRegressor(const std::string& folder) {
         floats(nm.at("outputScale"), a.outputs, "outputScale", configPath), c.value("training", nlohmann::json::object()).dump());
   } catch (const nlohmann::json::exception& e) {
     throw Error(SourceLoc{configPath}, std::string("not a regressor's configuration: ") + e.what());
-  } catch (const Error& e) {
-    throw Error(SourceLoc{configPath}, e.what());
   }
   loadParameters(*impl->net, (fs::path(folder) / "weights.pt").string(), configPath);
   return impl;

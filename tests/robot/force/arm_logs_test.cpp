@@ -91,6 +91,22 @@ TEST(Series, InterpolatesAndResamplesLinearSignalsExactly) {
   EXPECT_NE(errorOf([&] { interpolate(s, {1.5}); }).find("ramp: covers"), std::string::npos);
 }
 
+TEST(Series, AveragesAtTimesCentredOnThem) {
+  // A 1 kHz ramp ending at 2.997 s, averaged at 200 Hz times up to its very end: each value is the
+  // ramp's at the time (a symmetric window), and the last one is the mean of the samples in reach.
+  Series s{"ramp", {"x"}, {}, Eigen::MatrixXd(2998, 1), {}};
+  for (int i = 0; i <= 2997; ++i) {
+    s.t.push_back(i * 1e-3);
+    s.values(i, 0) = 3 * s.t.back();
+  }
+  const std::vector<double> times = {0.0012, 1.0012, 2.9962};
+  const Series a = averageAt(s, times, 0.005);
+  EXPECT_NEAR(a.values(1, 0), 3 * 1.0012, 3e-3);  // samples 0.999..1.003: mean 1.001
+  EXPECT_NEAR(a.values(2, 0), 3 * (2.994 + 2.995 + 2.996 + 2.997) / 4, 1e-12);
+  const std::vector<double> grid = uniformTimes(0, 2.997, 200);
+  EXPECT_LE(grid.back(), 2.997);
+}
+
 TEST(Series, WritesAndReadsBackWrenchesAndJacobians) {
   Eigen::MatrixXd w(2, 6);
   w << 1, 2, 3, 4, 5, 6, -1, -2, -3, -4, -5, 1.0 / 3;
