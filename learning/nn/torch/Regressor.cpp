@@ -175,7 +175,6 @@ class TorchRegressor final : public Regressor::Impl {
     return n;
   }
   const std::string& notes() const override { return notes_; }
-  void setNotes(std::string n) { notes_ = std::move(n); }
 
   RegressorArchitecture arch_;
   RegressorNet net;
