@@ -364,7 +364,7 @@ int runEval(const EvalOptions& o) {
       // Estimate against truth over the first recording: efforts (indirect) and forces (with a wrench).
       std::ostringstream gp;
       gp << "set terminal pngcairo size 1400,900\nset output outfile\nset datafile separator ','\n"
-            "set key top right\nset grid\nset xlabel 't (s)'\n";
+            "set key top right opaque\nset grid\nset xlabel 't (s)'\n";
       const bool efforts = model.kind != "direct", forces = allWrench.rows() > 0;
       gp << "set multiplot layout " << (efforts && forces ? 2 : 1) << ",3 title '" << model.description << "'\n";
       if (efforts)
