@@ -236,7 +236,19 @@ JointStateLog readJointStateLog(const std::string& path, int dof, const std::str
   return parseJointStateLog(readInputFile(path, "joint state log"), path, dof, columns);
 }
 
-Series readWrenchCsv(const std::string& path) { return readFixed(readInputFile(path, "wrench log"), path, kWrenchNames); }
+Series readWrenchCsv(const std::string& path) {
+  const std::string text = readInputFile(path, "wrench log");
+  // A force sensor's log without torques (t,Fx,Fy,Fz) reads with zero torques.
+  if (firstContentLine(text, path).fields.size() == 4) {
+    Series s = readFixed(text, path, {"Fx", "Fy", "Fz"});
+    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(s.samples(), 6);
+    w.leftCols(3) = s.values;
+    s.values = w;
+    s.names = kWrenchNames;
+    return s;
+  }
+  return readFixed(text, path, kWrenchNames);
+}
 
 Series readJacobianCsv(const std::string& path, int dof) {
   return readFixed(readInputFile(path, "Jacobian log"), path, jacobianNames(dof));

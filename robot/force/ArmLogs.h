@@ -6,7 +6,7 @@
 //    N m / N. Without a header a log of 1 + 3n columns has n joints; a 22-column log is taken as
 //    six joints plus the jaw (a seventh joint, dropped). Other orders: a column map (below) or a
 //    header naming the columns the same way.
-//  - wrench: `t,Fx,Fy,Fz,Tx,Ty,Tz` in N and N m.
+//  - wrench: `t,Fx,Fy,Fz,Tx,Ty,Tz` in N and N m (`t,Fx,Fy,Fz`: torques zero).
 //  - Jacobian: `t,J1_1,J1_2,..,J6_n` (row-major: row 1's n entries first).
 // A column map lists the file's columns in order: `t`, `qK`, `qdK`, `tauK` (K = 1-based joint) or
 // `-` for a column to skip; e.g. "t,q1,q2,q3,q4,q5,q6,q7,qd1,...". Aliases accepted in headers:

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <string>
 
 #include "core/Error.h"
@@ -115,6 +116,11 @@ TEST(Series, WritesAndReadsBackWrenchesAndJacobians) {
   const std::string path = testing::TempDir() + "/wrench.csv";
   writeSeries(path, wrenchSeries({0, 0.005}, w));
   EXPECT_EQ(readWrenchCsv(path).values, w);
+  std::ofstream(path) << "t,Fx,Fy,Fz\n0,1,2,3\n0.1,4,5,6\n";
+  const Series forces = readWrenchCsv(path);
+  EXPECT_EQ(forces.values.cols(), 6);
+  EXPECT_EQ(forces.values(1, 2), 6);
+  EXPECT_EQ(forces.values(1, 3), 0);
   Eigen::MatrixXd J = Eigen::MatrixXd::Random(3, 36);
   writeSeries(path, jacobianSeries({0, 1, 2}, J, 6));
   EXPECT_EQ(readJacobianCsv(path, 6).values, J);
