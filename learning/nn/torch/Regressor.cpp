@@ -108,11 +108,6 @@ Eigen::MatrixXf toMatrix(const torch::Tensor& t) {
   return Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(c.data_ptr<float>(), c.size(0), c.size(1));
 }
 
-std::vector<float> toVector(const torch::Tensor& t) {
-  const torch::Tensor c = t.contiguous().to(torch::kFloat32);
-  return std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
-}
-
 class TorchRegressor final : public Regressor::Impl {
  public:
   TorchRegressor(const RegressorArchitecture& a, std::vector<float> inMean, std::vector<float> inScale,
