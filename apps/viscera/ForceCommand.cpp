@@ -504,6 +504,7 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   train->add_option("--epochs", t->spec.epochs, "epochs (0: the kind's default)")->capture_default_str();
   train->add_option("--batch", t->spec.batch, "samples per batch")->capture_default_str();
   train->add_option("--lr", t->spec.learningRate, "Adam's learning rate")->capture_default_str();
+  train->add_option("--weight-decay", t->spec.weightDecay, "L2 penalty on the weights (Adam's weight decay)")->capture_default_str();
   train->add_option("--validation", t->spec.validation, "last share of each recording kept for validation")->capture_default_str();
   train->add_option("--patience", t->spec.patience, "stop after this many epochs without a better validation loss (0: never)")->capture_default_str();
   train->add_option("--seed", t->spec.seed, "random seed")->capture_default_str();

@@ -93,8 +93,9 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   }
 
   if (k == "physical") {
-    if (spec.window > 0 || spec.hidden > 0 || spec.epochs > 0 || !spec.base.empty())
-      throw Error("--window, --hidden, --epochs and --base are for networks; the physical model is identified by least squares");
+    if (spec.window > 0 || spec.hidden > 0 || spec.epochs > 0 || !spec.base.empty() || spec.weightDecay != 0)
+      throw Error("--window, --hidden, --epochs, --weight-decay and --base are for networks; the physical model is identified by "
+                  "least squares");
     model.kind = "physical";
     model.description = "physical model (least-squares identification)";
     say("identifying " + std::to_string(robot::PhysicalModel::parameterCount(dof)) + " parameters");
@@ -111,6 +112,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   RegressorTrainOptions o;
   o.batch = spec.batch;
   o.learningRate = spec.learningRate;
+  o.weightDecay = spec.weightDecay;
   o.patience = spec.patience;
   o.seed = spec.seed;
   int defaultEpochs = 60;
@@ -201,6 +203,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
                                   {"epochs", o.epochs},
                                   {"batch", o.batch},
                                   {"learningRate", o.learningRate},
+                                  {"weightDecay", o.weightDecay},
                                   {"loss", o.loss},
                                   {"seed", o.seed}};
   double lastValidation = NAN;

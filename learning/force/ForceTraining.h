@@ -34,6 +34,7 @@ struct ForceTrainSpec {
   int epochs = 0;            // 0: the kind's default
   int batch = 256;
   double learningRate = 1e-3;
+  double weightDecay = 0;    // L2 penalty on the networks' weights
   double validation = 0.1;   // the last share of each recording, kept out of training
   int patience = 0;
   std::uint64_t seed = 1;

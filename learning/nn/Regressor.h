@@ -45,6 +45,7 @@ struct RegressorTrainOptions {
   int batch = 256;
   double learningRate = 1e-3;
   std::string loss = "mse";  // "mse" or "mae" (in normalised units)
+  double weightDecay = 0;    // L2 penalty on the weights (Adam's weight_decay)
   int patience = 0;          // epochs without a better validation loss before stopping; 0: never
   std::uint64_t seed = 1;
 };

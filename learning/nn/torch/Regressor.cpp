@@ -187,8 +187,8 @@ std::unique_ptr<Regressor::Impl> torchTrainRegressor(const RegressorArchitecture
                 " inputs and " + std::to_string(a.outputs) + " outputs expected");
   if (validation.samples() > 0 && (validation.x.cols() != train.x.cols() || validation.y.cols() != train.y.cols()))
     throw Error("regressor: validation data of another shape than the training data");
-  if (o.epochs < 1 || o.batch < 1 || !(o.learningRate > 0) || (o.loss != "mse" && o.loss != "mae"))
-    throw Error("regressor: epochs, batch and learning rate must be positive and the loss mse or mae");
+  if (o.epochs < 1 || o.batch < 1 || !(o.learningRate > 0) || (o.loss != "mse" && o.loss != "mae") || !(o.weightDecay >= 0))
+    throw Error("regressor: epochs, batch and learning rate must be positive, weight decay >= 0 and the loss mse or mae");
   torch::manual_seed(o.seed);
   // Normalisation from the training data: per feature over all window positions.
   const Eigen::Index n = train.x.rows();
@@ -230,7 +230,7 @@ std::unique_ptr<Regressor::Impl> torchTrainRegressor(const RegressorArchitecture
   auto lossOf = [&](const torch::Tensor& p, const torch::Tensor& y) {
     return o.loss == "mae" ? torch::l1_loss(p, y) : torch::mse_loss(p, y);
   };
-  torch::optim::Adam optimizer(model->net->parameters(), torch::optim::AdamOptions(o.learningRate));
+  torch::optim::Adam optimizer(model->net->parameters(), torch::optim::AdamOptions(o.learningRate).weight_decay(o.weightDecay));
   double best = std::numeric_limits<double>::infinity(), rate = o.learningRate;
   int sinceBest = 0;
   std::vector<torch::Tensor> bestWeights;
