@@ -7,7 +7,7 @@ VISCERA   := $(BUILD_DIR)/apps/viscera/viscera
 CCACHE    := $(shell command -v ccache 2>/dev/null)
 CMAKE_FLAGS := -G Ninja -DCMAKE_BUILD_TYPE=Release $(if $(CCACHE),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
-.PHONY: all deps configure build demo test test-asan bench bench-accuracy fuzz docs clean models
+.PHONY: all deps configure build demo test test-asan bench bench-accuracy fuzz docs clean models force-figures
 
 all: build
 
@@ -43,6 +43,11 @@ bench: build
 # The learned models shipped in scenes/models/, made with the project's own commands (about 20 minutes).
 models: build
 	bash scripts/make-models.sh $(BUILD_DIR)
+
+# The force-estimation figures of the user guide: simulated recordings, every model, evaluations
+# (about 25 minutes).
+force-figures: build
+	bash scripts/force-figures.sh $(BUILD_DIR)
 
 # The palpation replay against a run with a ten times smaller step (long: about 15 minutes).
 bench-accuracy: build
