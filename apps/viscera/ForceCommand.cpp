@@ -15,6 +15,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <unistd.h>
 
 #include "apps/viscera/CliText.h"
 #include "apps/viscera/Gnuplot.h"
@@ -143,13 +144,15 @@ int runSimulate(const SimulateOptions& o) {
     };
   }
   const auto t0 = std::chrono::steady_clock::now();
+  // Progress on a terminal, rewritten in place; nothing in a log file.
+  const bool terminal = ::isatty(STDERR_FILENO) != 0;
   int lastPercent = -1;
   const robot::ArmRecording r = robot::simulateArm(arm, s, [&](double share) {
     const int p = static_cast<int>(share * 100);
-    if (p / 10 != lastPercent / 10) std::cerr << "\rsimulating " << p << " %" << std::flush;
+    if (terminal && p / 10 != lastPercent / 10) std::cerr << "\rsimulating " << p << " %" << std::flush;
     lastPercent = p;
   });
-  std::cerr << "\n";
+  if (terminal) std::cerr << "\n";
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   writeFolderAtomically(o.out, [&](const std::string& dir) {
     fs::create_directories(dir);
