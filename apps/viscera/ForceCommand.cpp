@@ -271,12 +271,6 @@ int runEval(const EvalOptions& o) {
   for (int j = 1; j <= model.dof; ++j) jointNames.push_back("joint" + std::to_string(j));
   // Every recording's samples together, for the summary measures.
   Eigen::MatrixXd allEffort, allPredicted, allWrench, allEstimated;
-  auto stack = [](Eigen::MatrixXd& to, const Eigen::MatrixXd& rows) {
-    Eigen::MatrixXd j(to.rows() + rows.rows(), rows.cols());
-    if (to.rows()) j.topRows(to.rows()) = to;
-    j.bottomRows(rows.rows()) = rows;
-    to.swap(j);
-  };
   std::string csv = "recording,t";
   for (int j = 1; j <= model.dof; ++j) csv += ",tau" + std::to_string(j) + ",tau_hat" + std::to_string(j);
   for (const char* a : kAxes) csv += std::string(",") + a + "," + a + "_hat";
@@ -293,8 +287,8 @@ int runEval(const EvalOptions& o) {
       predicted = model.freeSpaceEfforts(r.joints);
       const Eigen::MatrixXd effort = r.joints.effort();
       rj["efforts"] = measuresJson(robot::errorMeasures(predicted, effort), jointNames);
-      stack(allEffort, effort);
-      stack(allPredicted, predicted);
+      learning::appendRows(allEffort, effort);
+      learning::appendRows(allPredicted, predicted);
     }
     Eigen::MatrixXd truth = Eigen::MatrixXd::Constant(r.joints.samples(), 6, NAN), estimated = truth;
     if (r.wrench) {
@@ -304,8 +298,8 @@ int runEval(const EvalOptions& o) {
       const int axes = model.kind == "direct" && model.wrenchOutputs == 3 ? 3 : 6;
       rj["wrench"] = measuresJson(robot::errorMeasures(estimated.leftCols(axes), truth.leftCols(axes)),
                                   std::vector<std::string>(kAxes, kAxes + axes));
-      stack(allWrench, truth);
-      stack(allEstimated, estimated);
+      learning::appendRows(allWrench, truth);
+      learning::appendRows(allEstimated, estimated);
       // Stiffness from force against tool displacement, with the true and the estimated forces.
       Eigen::MatrixXd tips(r.joints.samples(), 3);
       for (int i = 0; i < r.joints.samples(); ++i) tips.row(i) = psm.tipPose(r.joints.q().row(i).transpose()).translation().transpose();

@@ -49,18 +49,6 @@ Eigen::MatrixXd wrenchAtJoints(const ForceRecording& r) {
   return robot::interpolate(*r.wrench, r.joints.series.t).values;
 }
 
-namespace {
-
-// Rows appended below a matrix's (which may be empty).
-void append(Eigen::MatrixXf& to, const Eigen::MatrixXf& rows) {
-  Eigen::MatrixXf joined(to.rows() + rows.rows(), rows.cols());
-  if (to.rows() > 0) joined.topRows(to.rows()) = to;
-  joined.bottomRows(rows.rows()) = rows;
-  to.swap(joined);
-}
-
-}  // namespace
-
 ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRecording>& recordings,
                            const std::function<void(const ForceTrainReport&)>& progress) {
   if (recordings.empty()) throw Error("force training: no recordings");
@@ -175,7 +163,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
   } data;
   auto fill = [&](const std::vector<robot::JointStateLog>& logs, const std::vector<Eigen::MatrixXd>& wrenches, RegressorData& d) {
     for (size_t i = 0; i < logs.size(); ++i) {
-      append(d.x, model.networkInputs(logs[i]));
+      appendRows(d.x, model.networkInputs(logs[i]));
       Eigen::MatrixXd y;
       if (k == "direct") {
         y = wrenches[i].leftCols(a.outputs);
@@ -183,7 +171,7 @@ ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRe
         y = logs[i].effort();
         if (model.base) y -= model.base->freeSpaceEfforts(logs[i]);
       }
-      append(d.y, y.cast<float>());
+      appendRows<Eigen::MatrixXf>(d.y, y.cast<float>());
     }
   };
   fill(trainLogs, trainWrench, data.train);

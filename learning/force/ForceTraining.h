@@ -52,6 +52,15 @@ struct ForceTrainReport {
 ForceModel trainForceModel(const ForceTrainSpec& spec, const std::vector<ForceRecording>& recordings,
                            const std::function<void(const ForceTrainReport&)>& progress = {});
 
+// `rows` appended below the rows of `to` (which may be empty): samples of several recordings in one.
+template <class Matrix>
+void appendRows(Matrix& to, const Matrix& rows) {
+  Matrix joined(to.rows() + rows.rows(), rows.cols());
+  if (to.rows() > 0) joined.topRows(to.rows()) = to;
+  joined.bottomRows(rows.rows()) = rows;
+  to.swap(joined);
+}
+
 // The wrench series of a recording at its joint samples (samples x 6), or an Error without one.
 Eigen::MatrixXd wrenchAtJoints(const ForceRecording& r);
 
