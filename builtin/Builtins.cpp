@@ -21,6 +21,7 @@ void registerDrivers(Registry&);
 void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
 void registerMappings(Registry&);
+void registerRigidMapping(Registry&);
 void registerObservation(Registry&);
 void registerRobotDrivers(Registry&);
 void registerForceDrivers(Registry&);
@@ -45,6 +46,7 @@ void registerBuiltins(Registry& r) {
   registerCollision(r);
   registerConstraintContact(r);
   registerMappings(r);
+  registerRigidMapping(r);
   registerObservation(r);
   registerRobotDrivers(r);
   registerForceDrivers(r);
@@ -65,6 +67,7 @@ void registerBuiltins(Registry& r) {
   r.addIgnored("TriangleSetTopologyModifier", "topology changes are not needed");
   r.addIgnored("TriangleSetGeometryAlgorithms", "geometry helpers are built in");
   r.addIgnored("InfoComponent", "no effect");
+  r.addIgnored("TaskSchedulerSettings", "threads are set by the run (--threads)");
   for (const char* t : {"EdgeSetTopologyModifier", "QuadSetTopologyModifier", "HexahedronSetTopologyModifier",
                         "PointSetTopologyModifier"})
     r.addIgnored(t, "topology changes are not needed");

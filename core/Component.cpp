@@ -24,8 +24,15 @@ std::vector<double> Component::linkedReals(const std::string& attr) {
   scene_.initComponent(src);
   if (field.empty()) field = attr;
   FieldValue out;
-  if (!src.field(field, out))
-    throw Error(v.loc, what + ": '" + src.name() + "' (" + src.typeName() + ") has no field '" + field + "'");
+  if (!src.field(field, out)) {
+    // SOFA links one component's setting to another's ("@[-1].contactStiffness"): a numeric
+    // attribute given as numbers in the scene serves as a field too.
+    const auto& values = src.attrs().values();
+    const auto it = values.find(field);
+    if (it == values.end() || !it->second.set || it->second.link || it->second.nums.empty())
+      throw Error(v.loc, what + ": '" + src.name() + "' (" + src.typeName() + ") has no field '" + field + "'");
+    out.values = it->second.nums;
+  }
   try {
     checkAttrNumbers(*v.spec, out.values);
   } catch (const std::invalid_argument& e) {

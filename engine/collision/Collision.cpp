@@ -13,6 +13,7 @@
 #include "engine/collision/Geometry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidMapping.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 #include "core/Text.h"
@@ -30,6 +31,7 @@ void SphereCollisionModel::init() {
   if (r.size() != 1) throw error("radius", "one radius per sphere, and a rigid body carries one sphere");
   radius_ = r[0];
   if (!(radius_ > 0)) throw error("radius", "must be positive");
+  stiffness_ = linkedReals("contactStiffness").at(0);
 }
 
 Eigen::Vector3d SphereCollisionModel::centre(const State& s) const { return body_->live(s).p; }
@@ -129,12 +131,16 @@ void SurfaceCollisionModel::init() {
   kind_ = t == "PointCollisionModel" ? Kind::Points : t == "LineCollisionModel" ? Kind::Lines : Kind::Triangles;
   if (attrs_.boolean("selfCollision")) throw error("selfCollision", "self-collision is not handled; set it to false");
   surfaceState_ = state_ = &contextState(*this);
-  stiffness_ = attrs_.real("contactStiffness");
+  stiffness_ = linkedReals("contactStiffness").at(0);
+  ownDistance_ = attrs_.real("contactDistance");
   // A surface on a mapped state (SOFA's collision node under a body) acts on the mapping's input:
   // each surface vertex is a weighted sum of the body's nodes, and so is each contact.
   for (const auto& c : surfaceState_->node().components())
     if (dynamic_cast<Mapping*>(c.get())) scene().initComponent(*c);
-  if (const Component* by = surfaceState_->mappedBy()) {
+  if (const auto* rm = dynamic_cast<const RigidMapping*>(surfaceState_->mappedBy())) {
+    // A rigid body's surface: it moves with the body and takes no contact force.
+    rigid_ = &rm->body();
+  } else if (const Component* by = surfaceState_->mappedBy()) {
     const auto* m = dynamic_cast<const Mapping*>(by);
     if (!m || !m->inputState())
       throw error("its MechanicalObject '" + surfaceState_->name() + "' is mapped by " + by->typeName() +
@@ -216,14 +222,21 @@ Component& SurfaceCollisionModel::surfaceSource() {
     if (!surfaceRank(*c)) throw error("topology", "links to '" + c->name() + "', which has no tetrahedra, hexahedra or triangles");
     return *c;
   }
-  // The nearest node with a topology; in it, tetrahedra before hexahedra before triangles.
+  // The nearest node with a topology; in it, tetrahedra before hexahedra before triangles, and
+  // among equals one whose points are the state's nodes, then a topology container before a loader
+  // (a node may also load its visual mesh).
+  const Eigen::Index nodes = surfaceState_->x0.cols();
   for (const Node* n = &node(); n; n = n->parent()) {
     Component* best = nullptr;
     int bestRank = 0;
     for (auto it = n->components().rbegin(); it != n->components().rend(); ++it) {
-      if (!dynamic_cast<Topology*>(it->get())) continue;
+      const auto* topo = dynamic_cast<Topology*>(it->get());
+      if (!topo) continue;
       scene().initComponent(**it);
-      if (const int r = surfaceRank(**it); r > bestRank) {
+      const int rank = surfaceRank(**it);
+      if (!rank) continue;
+      const bool fits = topo->points().cols() == 0 || topo->points().cols() == nodes;
+      if (const int r = 4 * rank + 2 * fits + ((*it)->spec().category != "loader"); r > bestRank) {
         best = it->get();
         bestRank = r;
       }
@@ -649,15 +662,30 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
     // Broad phase: the hierarchy follows the surface once per step; each sphere then visits only
     // the triangles its inflated box touches.
     m->refit(s, m->surfacePositions(s));
-    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), settings_, found);
-    m->setContacts(s, std::move(found), settings_);
+    // A model's own contactDistance widens its contacts' (SOFA adds the models' to the intersection's).
+    ContactSettings own = settings_;
+    own.contactDistance += m->ownContactDistance();
+    own.alarmDistance += m->ownContactDistance();
+    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), own, found);
+    if (m->rigidBody() && !found.empty()) {
+      Diverged bad;
+      bad.step = stepIndex;
+      bad.time = t;
+      bad.reason = "the sphere '" + found.front().sphere->name() + "' touches the surface '" + m->name() + "' (" +
+                   m->node().path() + ") of rigid body '" + m->rigidBody()->name() +
+                   "': contact on a rigid body's surface is not handled (only instruments' spheres against deformable "
+                   "surfaces)";
+      bad.object = m->rigidBody()->name();
+      return bad;
+    }
+    m->setContacts(s, std::move(found), own);
   }
   // Surfaces of two bodies must stay apart: contact between deformable (or fixed) bodies is not
   // handled, so a vertex coming within the alarm distance of another body's surface (at least a
   // twentieth of the surface's mean edge) fails the step instead of passing through unseen.
   for (SurfaceCollisionModel* a : surfaces_)
     for (SurfaceCollisionModel* b : surfaces_) {
-      if (a == b || !a->active() || !b->active() || &a->mstate() == &b->mstate()) continue;
+      if (a == b || !a->active() || !b->active() || a->body() == b->body()) continue;
       const double margin =
           std::max({settings_.alarmDistance, settings_.contactDistance, 0.05 * std::max(a->meanEdgeLength(), b->meanEdgeLength())});
       const Eigen::Matrix3Xd& xa = a->surfacePositions(s);

@@ -74,12 +74,12 @@ class SphereCollisionModel : public Component {
   RigidObject& body() const { return *body_; }
   double radius() const { return radius_; }
   // SOFA's contactStiffness factor of the model (10 unless given).
-  double contactStiffness() const { return attrs().real("contactStiffness"); }
+  double contactStiffness() const { return stiffness_; }
   Eigen::Vector3d centre(const State& s) const;
 
  private:
   RigidObject* body_ = nullptr;
-  double radius_ = 1.0;
+  double radius_ = 1.0, stiffness_ = 10;
 };
 
 // Spheres on the nodes of a deformable body: SOFA's SphereCollisionModel on a Vec3d object (a
@@ -125,6 +125,11 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // The body the contact forces act on: the node's MechanicalObject, or, when that is a mapped
   // state (SOFA's collision node under a body), the mapping's input.
   MechanicalObject& mstate() const override { return *state_; }
+  // The rigid body whose surface this is (its state mapped by a RigidMapping), or null. A rigid
+  // body's surface moves with it and takes no contact: the step fails when something touches it.
+  RigidObject* rigidBody() const { return rigid_; }
+  // What moves the surface: the rigid body, else the body the forces act on.
+  const void* body() const { return rigid_ ? static_cast<const void*>(rigid_) : static_cast<const void*>(state_); }
   // Where the surface is: the node's MechanicalObject (mapped or not).
   const Eigen::Matrix3Xd& surfacePositions(const State& s) const;
   const MechanicalObject& surfaceState() const { return *surfaceState_; }
@@ -135,6 +140,8 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   const std::vector<int>& vertices() const { return verts_; }
   // SOFA's contactStiffness factor of the model (10 unless given).
   double contactStiffness() const { return stiffness_; }
+  // The model's own contactDistance, added to the intersection's for its contacts.
+  double ownContactDistance() const { return ownDistance_; }
   // Inactive when another model on the same body with more features covers it.
   bool active() const { return active_; }
   void setActive(bool a) { active_ = a; }
@@ -171,11 +178,12 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
   MechanicalObject* state_ = nullptr;         // receives the forces
   MechanicalObject* surfaceState_ = nullptr;  // carries the surface
+  RigidObject* rigid_ = nullptr;              // the rigid body it is on, if any
   // Per surface vertex, the body's nodes and weights it is mapped from (empty: the same nodes).
   std::vector<std::vector<std::pair<int, double>>> vertexMap_;
   Kind kind_ = Kind::Triangles;
   bool active_ = true;
-  double stiffness_ = 0;
+  double stiffness_ = 0, ownDistance_ = 0;
   std::vector<std::array<int, 3>> tris_;
   std::vector<int> verts_;
   std::vector<std::array<int, 2>> edges_;          // surface edges (a < b)

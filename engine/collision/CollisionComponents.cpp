@@ -29,7 +29,7 @@ void registerCollision(Registry& r) {
             "with nothing, so the scene may hold no other collision model.";
     s.add(AttrSpec::reals("radius").def("1").unit(Dimension::length()).help("sphere radius (one value; on a Vec3d object also one per node)"));
     s.add(AttrSpec::reals("listRadius").unit(Dimension::length()).linked().help("on a Vec3d object: one radius per node, e.g. \"@[-2].listRadius\" from a SphereLoader"));
-    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).help(
+    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).linked().help(
         "SOFA's stiffness factor: a penalty contact's stiffness is this times the surface's, over contactDistance "
         "plus the radius (force per length in the scene's units)"));
     s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
@@ -57,9 +57,11 @@ void registerCollision(Registry& r) {
     s.aliases = {base + "Model", base + "SetModel"};
     s.category = "collision";
     s.doc = d[1];
-    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).help(
+    s.add(AttrSpec::real("contactStiffness").def("10").atLeast(0).linked().help(
         "SOFA's stiffness factor: a penalty contact's stiffness is this times the sphere's, over contactDistance plus "
         "the sphere's radius (force per length in the scene's units)"));
+    s.add(AttrSpec::real("contactDistance").def("0").atLeast(0).unit(Dimension::length()).help(
+        "added to the intersection's alarm and contact distances for this surface's contacts, as in SOFA"));
     s.add(AttrSpec::link("topology").help("the topology whose boundary is the surface: tetrahedra, or hexahedra (default: the nearest in the node or above)"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.add(AttrSpec::boolean("bothSide").def("false").help("accepted for SOFA scenes; the outer side is used"));
@@ -92,6 +94,8 @@ void registerCollision(Registry& r) {
     s.add(AttrSpec::real("alarmDistance").def("1").above(0).unit(Dimension::length()).help("detection distance"));
     s.add(AttrSpec::real("contactDistance").def("0.5").atLeast(0).unit(Dimension::length()).help("distance kept between surfaces"));
     s.add(AttrSpec::real("angleCone").def("0").help("accepted for SOFA scenes; the exact Voronoi test is used"));
+    s.add(AttrSpec::real("coneFactor").def("0.5").help("accepted for SOFA scenes; the exact Voronoi test is used"));
+    s.add(AttrSpec::boolean("useLMDFilters").def("false").help("accepted for SOFA scenes; the exact Voronoi test is used"));
     s.add(AttrSpec::boolean("useSphereTriangle").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("usePointPoint").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("useLinePoint").def("true").help("accepted for SOFA scenes"));
@@ -129,7 +133,9 @@ void registerCollision(Registry& r) {
   }
   r.addIgnored("BruteForceBroadPhase", "the pipeline's broad phase is a bounding-volume hierarchy");
   r.addIgnored("BruteForceDetection", "the pipeline's broad phase is a bounding-volume hierarchy");
+  r.addIgnored("ParallelBruteForceBroadPhase", "the pipeline's broad phase is a bounding-volume hierarchy");
   r.addIgnored("BVHNarrowPhase", "the pipeline's narrow phase is built in");
+  r.addIgnored("ParallelBVHNarrowPhase", "the pipeline's narrow phase is built in");
   r.addIgnored("CollisionGroup", "all instruments collide with all tissue");
   r.addIgnored("DefaultCollisionGroupManager", "all instruments collide with all tissue");
 }

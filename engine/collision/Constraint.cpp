@@ -34,6 +34,10 @@ class ConstraintCorrection : public Component, public Stateful {
 
   void init() override {
     const std::string& t = typeName();
+    for (const char* rigidOnly : {"defaultCompliance", "useOdeSolverIntegrationFactors"})
+      if (attrs_.isSet(rigidOnly))
+        throw error(rigidOnly, "is not used for a deformable body: its compliance comes from the step's matrix and the "
+                               "ODE solver's factors");
     mode_ = t == "UncoupledConstraintCorrection" ? Mode::Uncoupled
             : t == "LinearSolverConstraintCorrection" || t == "GenericConstraintCorrection" ? Mode::LinearSolver
                                                                                             : Mode::Precomputed;
@@ -349,6 +353,20 @@ class FreeMotionAnimationLoop : public Component {
   }
 };
 
+// A constraint correction in a rigid body's node (SOFA scenes give every body one). Contact on a
+// rigid body is not handled (the step fails when something touches its surfaces), so its
+// compliance is never needed: the component only says so.
+class RigidBodyCorrection : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    RigidObject& body = contextRigid(*this, "mstate");
+    scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "' is on rigid body '" + body.name() +
+                    "': contact on rigid bodies is not handled (a step in which something touches its surfaces "
+                    "fails), so no compliance is used");
+  }
+};
+
 }  // namespace
 
 void registerConstraintContact(Registry& r) {
@@ -377,6 +395,11 @@ void registerConstraintContact(Registry& r) {
     s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help("relative change of the contact forces to stop at"));
     s.add(AttrSpec::real("mu").atLeast(0).help("friction coefficient (overrides the CollisionResponse's)"));
     s.add(AttrSpec::boolean("build_lcp").def("true").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("initial_guess").def("true").help(
+        "accepted for SOFA scenes (a warm start from the last step's forces): the iteration starts from zero forces, "
+        "and converges to the same forces within the tolerance"));
+    s.add(AttrSpec::boolean("multi_grid").def("false").help(
+        "accepted for SOFA scenes (a coarse-level start for large problems): the result is the same within the tolerance"));
     s.add(AttrSpec::boolean("computeConstraintForces").def("true").help("accepted for SOFA scenes; forces are always computed"));
     s.add(AttrSpec::string("resolutionMethod").def("ProjectedGaussSeidel").help("accepted for SOFA scenes; projected Gauss-Seidel is used"));
     s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
@@ -402,7 +425,14 @@ void registerConstraintContact(Registry& r) {
     s.add(AttrSpec::string("solverName").def("").help("accepted for SOFA scenes; the node's solver is used"));
     s.add(AttrSpec::string("compliance").def("").help("accepted for SOFA scenes; the compliance comes from the mass"));
     s.add(AttrSpec::boolean("wire_optimization").def("false").help("accepted for SOFA scenes"));
-    s.factory = [](BuildContext& ctx) { return std::make_unique<ConstraintCorrection>(ctx); };
+    s.add(AttrSpec::link("linearSolver").help("accepted for SOFA scenes; the node's solver is used"));
+    s.add(AttrSpec::real("defaultCompliance").atLeast(0).help("rigid bodies only (whose contact is not handled): accepted for SOFA scenes"));
+    s.add(AttrSpec::boolean("useOdeSolverIntegrationFactors").def("true").help("rigid bodies only (whose contact is not handled): accepted for SOFA scenes"));
+    s.add(AttrSpec::link("mstate").help("the body (default: the one in the node)"));
+    s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
+      if (ctx.node().find<RigidObject>() && !ctx.node().find<MechanicalObject>()) return std::make_unique<RigidBodyCorrection>(ctx);
+      return std::make_unique<ConstraintCorrection>(ctx);
+    };
     r.add(std::move(s));
   }
 }

@@ -13,18 +13,7 @@
 
 namespace viscera {
 
-namespace {
-
-// Four significant digits, for messages.
-std::string formatNumber(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
-
-// The node a link names, for SOFA's node links ("@..": the parent, "@.": this node,
-// "@/root/body", "@child/"); nullptr if the path does not name a node.
-const Node* nodeAt(const Node& from, const std::string& link) {
+const Node* linkedNode(const Node& from, const std::string& link) {
   std::string path = !link.empty() && link[0] == '@' ? link.substr(1) : link;
   const Node* node = &from;
   if (!path.empty() && path[0] == '/') {
@@ -52,6 +41,15 @@ const Node* nodeAt(const Node& from, const std::string& link) {
     if (!node) return nullptr;
   }
   return node;
+}
+
+namespace {
+
+// Four significant digits, for messages.
+std::string formatNumber(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
 }
 
 // What a mapping's link names: a component or, as SOFA allows, a node.
@@ -106,7 +104,7 @@ class PointMapping : public Component, public Mapping {
     try {
       return {&scene().resolve(*this, v.text, v.loc, attrs_.component() + "." + attr), nullptr};
     } catch (const Error&) {
-      if (const Node* n = nodeAt(node(), v.text)) return {nullptr, n};
+      if (const Node* n = linkedNode(node(), v.text)) return {nullptr, n};
       throw;
     }
   }

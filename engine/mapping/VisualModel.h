@@ -66,6 +66,10 @@ const Topology* hexahedraAbove(Scene& scene, const Node& from);
 // double precision. Throws the component's error otherwise.
 void checkVec3Template(const Component& c);
 
+// The node a link names, for SOFA's node links ("@..": the parent, "@.": this node,
+// "@/root/body", "@child/"); nullptr if the path does not name a node.
+const Node* linkedNode(const Node& from, const std::string& link);
+
 void registerVisualModel(Registry& r);
 
 }  // namespace viscera

@@ -4,6 +4,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 
 namespace viscera {
 
@@ -92,7 +93,7 @@ class DirectionalConstraint : public Component, public ProjectiveConstraint {
     } else {
       const auto& axes = attrs_.ints("fixedDirections");
       if (axes.size() != 3)
-        throw error("fixedDirections", "takes three flags (x y z) on a Vec3d object; rigid objects are driven, not constrained");
+        throw error("fixedDirections", "takes three flags (x y z) on a Vec3d object");
       if (attrs_.boolean("fixAll")) {
         for (int i = 0; i < n; ++i) nodes.push_back(i);
       } else {
@@ -112,6 +113,29 @@ class DirectionalConstraint : public Component, public ProjectiveConstraint {
   std::vector<int> none_;
   std::vector<std::pair<int, Eigen::Vector3d>> held_;
 };
+
+// FixedConstraint or PartialFixedProjectiveConstraint on a Rigid3d body: holds the chosen velocity
+// components (world x y z, then rotation about x y z) of an integrated body at zero.
+class RigidHold : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    RigidObject& body = contextRigid(*this, "mstate");
+    for (int i : linkedInts("indices"))
+      if (i != 0) throw error("indices", "a Rigid3d object has one frame (index 0), got " + std::to_string(i));
+    std::vector<int> flags(6, 1);
+    if (spec().find("fixedDirections") && attrs_.isSet("fixedDirections")) {
+      flags = attrs_.ints("fixedDirections");
+      if (flags.size() != 6)
+        throw error("fixedDirections", "takes six flags on a Rigid3d object (x y z translation, then rotation about x y z), got " +
+                                           std::to_string(flags.size()));
+    }
+    if (spec().find("indices") && attrs_.isSet("indices") && linkedInts("indices").empty()) flags.assign(6, 0);
+    for (int k = 0; k < 6; ++k) body.held[k] = body.held[k] || flags[k] != 0;
+  }
+};
+
+bool inRigidNode(const BuildContext& c) { return c.node().find<RigidObject>() && !c.node().find<MechanicalObject>(); }
 
 class BoxROI : public Component {
  public:
@@ -197,7 +221,10 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::ints("indices").def("").atLeast(0).linked().help("fixed nodes (or a link such as @box.indices)"));
     s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
-    s.factory = [](BuildContext& c) { return std::make_unique<FixedConstraint>(c); };
+    s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      if (inRigidNode(c)) return std::make_unique<RigidHold>(c);
+      return std::make_unique<FixedConstraint>(c);
+    };
     r.add(std::move(s));
   }
   {
@@ -211,7 +238,10 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::ints("fixedDirections").def("1 1 1").help("per axis x y z: 1 holds it, 0 leaves it free"));
     s.add(AttrSpec::boolean("fixAll").def("false").help("every node"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
-    s.factory = [](BuildContext& c) { return std::make_unique<DirectionalConstraint>(c); };
+    s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+      if (inRigidNode(c)) return std::make_unique<RigidHold>(c);
+      return std::make_unique<DirectionalConstraint>(c);
+    };
     r.add(std::move(s));
   }
   {
@@ -250,6 +280,7 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::reals("box").def("0 0 0 1 1 1").multipleOf(6).unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax, repeated for several boxes"));
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points to test (default: rest positions of the node's MechanicalObject)"));
     s.add(AttrSpec::boolean("strict").def("false").help("fail if the box selects nothing"));
+    s.add(AttrSpec::ints("indices").help("SOFA's output: the selection, computed from the box; a value in the scene is replaced, as in SOFA"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<BoxROI>(c); };
     r.add(std::move(s));

@@ -3,12 +3,15 @@
 // same lumped one). Each applies gravity as f += m g with the lumped masses (M g for a uniform g).
 #include <Eigen/Dense>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/ElementMass.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 
@@ -56,6 +59,8 @@ class UniformMass : public LumpedMass {
   using LumpedMass::LumpedMass;
   void init() override {
     state_ = &contextState(*this);
+    for (const char* rigidOnly : {"filename", "inertiaMatrix"})
+      if (attrs_.isSet(rigidOnly)) throw error(rigidOnly, "applies to the mass of a Rigid3d body, not to Vec3d nodes");
     const int n = state_->size();
     double vm = attrs_.isSet("totalMass") ? attrs_.real("totalMass") / n : attrs_.real("vertexMass");
     if (!attrs_.isSet("totalMass") && !attrs_.isSet("vertexMass"))
@@ -64,15 +69,78 @@ class UniformMass : public LumpedMass {
   }
 };
 
-// UniformMass in the node of a rigid body: the instrument's mass. The body is driven, so the mass
-// is recorded (and reported) but does not enter any equation.
+// UniformMass in the node of a rigid body: its mass and inertia (SOFA's RigidMass). The inertia
+// about the frame's origin, in the body's frame, is mass x inertiaMatrix (per unit mass; the
+// identity unless given), as SOFA sets it; a `.rigid` file (SOFA's Xsp format) gives the mass,
+// volume and inertia of a shape. Driven bodies record the mass; integrated ones use it.
 class RigidMass : public Component {
  public:
   using Component::Component;
   void init() override {
     RigidObject& body = contextRigid(*this, "mstate");
-    if (!attrs_.isSet("totalMass") && !attrs_.isSet("vertexMass")) throw error("set totalMass or vertexMass");
-    body.mass = attrs_.isSet("totalMass") ? attrs_.real("totalMass") : attrs_.real("vertexMass");
+    Eigen::Matrix3d perUnitMass = Eigen::Matrix3d::Identity();
+    double mass = 0;
+    bool massSet = false;
+    if (attrs_.isSet("filename")) {
+      const std::string path = scene().resolvePath(attrs_.str("filename"));
+      try {
+        readRigidFile(path, mass, perUnitMass);
+      } catch (const Error& e) {
+        throw fileErrorFor(e, *this, "filename");
+      }
+      massSet = true;
+    }
+    if (attrs_.isSet("totalMass")) mass = attrs_.real("totalMass"), massSet = true;
+    else if (attrs_.isSet("vertexMass")) mass = attrs_.real("vertexMass"), massSet = true;
+    if (!massSet) throw error("set totalMass, vertexMass or filename");
+    if (attrs_.isSet("inertiaMatrix")) {
+      const auto& m = attrs_.reals("inertiaMatrix");
+      if (m.size() != 9) throw error("inertiaMatrix", "takes 9 numbers (a 3 x 3 matrix, row by row), got " + std::to_string(m.size()));
+      perUnitMass = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(m.data());
+    }
+    if (!perUnitMass.isApprox(perUnitMass.transpose(), 1e-9) || perUnitMass.selfadjointView<Eigen::Lower>().eigenvalues().minCoeff() <= 0)
+      throw error(attrs_.isSet("inertiaMatrix") ? "inertiaMatrix" : "filename", "the inertia matrix is not symmetric positive definite");
+    body.mass = mass;
+    body.inertia = mass * perUnitMass;
+  }
+
+ private:
+  // SOFA's Xsp rigid file: "Xsp 3.0", then keyword lines: mass (or vertexMass), inrt (9 numbers:
+  // inertia per unit mass), and volm, center, frme, ... which SOFA reads and does not use.
+  static void readRigidFile(const std::string& path, double& mass, Eigen::Matrix3d& inertia) {
+    std::ifstream in(path);
+    if (!in) throw Error(SourceLoc{path}, "cannot read the rigid-body file");
+    std::string line;
+    int n = 0;
+    bool haveMass = false;
+    while (std::getline(in, line)) {
+      ++n;
+      std::istringstream ls(line);
+      std::string key;
+      if (!(ls >> key) || key[0] == '#') continue;
+      auto numbers = [&](int count) {
+        std::vector<double> v(count);
+        for (double& x : v)
+          if (!(ls >> x) || !std::isfinite(x))
+            throw Error(SourceLoc{path, n}, "'" + key + "' needs " + std::to_string(count) + " finite number(s)");
+        return v;
+      };
+      if (key == "Xsp") continue;
+      if (key == "mass" || key == "vertexMass") {
+        mass = numbers(1)[0];
+        if (!(mass > 0)) throw Error(SourceLoc{path, n}, "the mass must be positive");
+        haveMass = true;
+      } else if (key == "inrt") {
+        const auto v = numbers(9);
+        inertia = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(v.data());
+      } else if (key != "volm" && key != "center" && key != "cntr" && key != "frme" && key != "grav" && key != "visc" &&
+                 key != "stck" && key != "step" && key != "prec") {
+        // SOFA reads the other keywords and uses none of them (the body turns about its frame's
+        // origin, not the file's centre): so does Viscera.
+        throw Error(SourceLoc{path, n}, "unknown keyword '" + key + "' (expected mass, volm, inrt, center, ...)");
+      }
+    }
+    if (!haveMass) throw Error(SourceLoc{path}, "no 'mass' line");
   }
 };
 
@@ -250,9 +318,12 @@ void registerMasses(Registry& r) {
     s.name = "UniformMass";
     s.category = "mass";
     s.doc = "The same mass for every node: totalMass / #nodes, or vertexMass. Applies gravity. In the node of a "
-            "Rigid3d body it is the body's mass (recorded; driven bodies do not integrate it).";
+            "Rigid3d body it is the body's mass and inertia (mass x inertiaMatrix about the frame's origin, or from a "
+            "SOFA .rigid file); a driven body records it, an integrated one moves with it.";
     s.add(AttrSpec::real("totalMass").above(0).unit(Dimension::mass()).help("mass of the whole body (wins over vertexMass)"));
     s.add(AttrSpec::real("vertexMass").above(0).unit(Dimension::mass()).help("mass of each node"));
+    s.add(AttrSpec::file("filename").help("Rigid3d bodies: a SOFA .rigid file (mass, volm, inrt, center)"));
+    s.add(AttrSpec::reals("inertiaMatrix").help("Rigid3d bodies: inertia per unit mass about the frame's origin, body frame, 9 numbers (default: identity)"));
     s.add(massLink());
     s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
       if (c.node().find<RigidObject>() && !c.node().find<MechanicalObject>()) return std::make_unique<RigidMass>(c);

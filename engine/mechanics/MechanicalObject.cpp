@@ -75,13 +75,14 @@ void MechanicalObject::init() {
   }
 }
 
-void MechanicalObject::setMappedBy(const Component& mapping) {
+void MechanicalObject::setMappedBy(const Component& mapping, bool carriesForces) {
   if (mappedBy_ && mappedBy_ != &mapping)
     throw mapping.error("output", "MechanicalObject '" + name() + "' is already the output of " + mappedBy_->typeName() +
                                       " '" + mappedBy_->name() + "'; give each mapped state one mapping");
-  // Forces on a mapped state are not carried back to its input here: refuse what would be ignored.
+  // Forces on a mapped state reach its input only through a mapping that carries them: refuse what
+  // would be ignored.
   for (const auto& c : node().components())
-    if (const auto* f = dynamic_cast<const ForceField*>(c.get()); (f && !f->actsThroughMapping()) ||
+    if (const auto* f = dynamic_cast<const ForceField*>(c.get()); (f && !f->actsThroughMapping() && !carriesForces) ||
         dynamic_cast<const Mass*>(c.get()) || dynamic_cast<const ProjectiveConstraint*>(c.get()))
       throw mapping.error("output", "MechanicalObject '" + name() + "' is mapped, but the " + c->typeName() + " '" +
                                         c->name() + "' in its node acts on it; forces and constraints on a mapped state "

@@ -39,8 +39,8 @@ class MechanicalObject : public Component, public Stateful {
 
   int size() const { return static_cast<int>(x0.cols()); }
   // A mapped state: its x and v are written by `mapping` every step, not integrated. One mapping
-  // per state.
-  void setMappedBy(const Component& mapping);
+  // per state. Force fields on it are refused unless the mapping carries them to its input.
+  void setMappedBy(const Component& mapping, bool carriesForces = false);
   const Component* mappedBy() const { return mappedBy_; }
 
   Eigen::Matrix3Xd x0;     // rest positions

@@ -1,15 +1,18 @@
-// MeshSpringForceField (SOFA's): a spring on every node pair of the mesh's elements, with the rest
-// length of the pair at rest. Per spring between a and b, with u the unit vector from a to b and
+// Springs between node pairs of one MechanicalObject: MeshSpringForceField (SOFA's: a spring on
+// every node pair of the mesh's elements, with the rest length of the pair at rest) and
+// SpringForceField (the springs listed). Per spring between a and b, with u the unit vector from a to b and
 // d the length:  f_a = (ks (d - L0) + kd u.(v_b - v_a)) u,  f_b = -f_a.  The stiffness (SOFA's,
 // damping left out of the matrix as SOFA does): df_a/dx_b = J = (ks - t) u u^T + t I with
 // t = (ks (d - L0) + kd u.(v_b - v_a)) / d, and df_a/dx_a = -J.
 #include <Eigen/Dense>
+#include <cmath>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
+#include "core/Text.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
@@ -40,6 +43,7 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
   }
   void init() override {
     state_ = &contextState(*this);
+    if (typeName() == "SpringForceField") return listedSprings();
     const Eigen::Matrix3Xd& X = state_->x0;
     // The element kinds in SOFA's order: a pair keeps the stiffness of the first kind that lists it.
     auto value = [&](const char* kind, const char* fallback) {
@@ -112,7 +116,7 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
       const Spring& s = springs_[i];
       Eigen::Vector3d u = x.col(s.b) - x.col(s.a);
       const double d = u.norm();
-      if (!(d > 0)) {
+      if (!(d > 1e-9)) {  // SOFA skips springs this short
         J[i].setZero();
         continue;
       }
@@ -153,6 +157,39 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
   }
 
  private:
+  // SOFA's SpringForceField: `spring` lists "i j ks kd L" per spring; or indices1, indices2 and
+  // lengths, with one stiffness and damping for all. Both ends are nodes of this MechanicalObject.
+  void listedSprings() {
+    for (const char* end : {"object1", "object2"})
+      if (Component* c = linkedComponent(end); c && c != state_)
+        throw error(end, "links to '" + c->name() + "'; springs between two MechanicalObjects are not handled (both "
+                         "ends must be nodes of '" + state_->name() + "')");
+    const int n = state_->size();
+    auto node = [&](const char* attr, double i) {
+      if (!(i >= 0 && i < n && i == std::floor(i)))
+        throw error(attr, "node " + formatNumber(i) + " is not a node of '" + state_->name() + "' (" + std::to_string(n) + " nodes)");
+      return static_cast<int>(i);
+    };
+    if (attrs_.isSet("spring")) {
+      const auto& v = attrs_.reals("spring");
+      for (size_t k = 0; k + 5 <= v.size(); k += 5) {
+        if (v[k + 2] < 0 || v[k + 3] < 0 || v[k + 4] < 0)
+          throw error("spring", "spring " + std::to_string(k / 5) + " has a negative stiffness, damping or length");
+        springs_.push_back({node("spring", v[k]), node("spring", v[k + 1]), v[k + 2], v[k + 3], v[k + 4]});
+      }
+      return;
+    }
+    const auto a = linkedInts("indices1"), b = linkedInts("indices2");
+    auto lengths = attrs_.reals("lengths");
+    if (a.size() != b.size()) throw error("indices2", "has " + std::to_string(b.size()) + " nodes, indices1 " + std::to_string(a.size()));
+    if (lengths.size() == 1) lengths.assign(a.size(), lengths[0]);
+    if (!lengths.empty() && lengths.size() != a.size())
+      throw error("lengths", "needs one length, or one per spring (" + std::to_string(a.size()) + ")");
+    for (size_t k = 0; k < a.size(); ++k)
+      springs_.push_back({node("indices1", a[k]), node("indices2", b[k]), attrs_.real("stiffness"), attrs_.real("damping"),
+                          lengths.empty() ? 0.0 : lengths[k]});
+  }
+
   MechanicalObject* state_ = nullptr;
   std::vector<Spring> springs_;
 };
@@ -190,6 +227,24 @@ void registerSprings(Registry& r) {
     s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
     r.add(std::move(s));
   }
+  ComponentSpec s;
+  s.name = "SpringForceField";
+  s.category = "forcefield";
+  s.doc = "Springs between listed node pairs of one MechanicalObject (SOFA's SpringForceField): `spring` gives \"i j "
+          "ks kd L\" for each, or indices1/indices2 with lengths and one stiffness and damping. Per spring f = ks (d - L) "
+          "+ kd u.(v_j - v_i) along u, the unit vector from i to j; damping stays out of the implicit matrix, as in SOFA. "
+          "A spring shorter than 1e-9 of the scene's length pushes nothing.";
+  s.add(AttrSpec::reals("spring").multipleOf(5).help("i j ks kd L per spring (stiffness in force per length, damping in force per speed)"));
+  s.add(AttrSpec::ints("indices1").alias("springsIndices1").atLeast(0).linked().help("first nodes (without `spring`)"));
+  s.add(AttrSpec::ints("indices2").alias("springsIndices2").atLeast(0).linked().help("second nodes"));
+  s.add(AttrSpec::reals("lengths").alias("length").atLeast(0).unit(Dimension::length()).help("rest lengths: one for all or one per spring (default 0)"));
+  s.add(AttrSpec::real("stiffness").def("100").atLeast(0).unit(Dimension::stiffness()).help("stiffness of the indexed springs"));
+  s.add(AttrSpec::real("damping").def("5").atLeast(0).unit({0, 1, -1}).help("damping of the indexed springs"));
+  s.add(AttrSpec::link("object1").help("the MechanicalObject of the first nodes (default and only choice: this node's)"));
+  s.add(AttrSpec::link("object2").help("the MechanicalObject of the second nodes (default and only choice: this node's)"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
+  r.add(std::move(s));
 }
 
 }  // namespace viscera

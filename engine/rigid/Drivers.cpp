@@ -7,6 +7,7 @@
 #include "engine/Roles.h"
 #include "core/Registry.h"
 #include "core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/Placement.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/InputCache.h"
@@ -132,9 +133,73 @@ class LinearMovementConstraint : public Component, public Driver {
   bool relative_ = true;
 };
 
+// SOFA's LinearVelocityProjectiveConstraint on a Rigid3d body: between key times the body's
+// velocity is interpolated linearly from the keys' velocities (held at the last one after the
+// end with continueAfterEnd); the body moves with it, and outside the keys it is free.
+class LinearVelocityConstraint : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    if (node().find<MechanicalObject>() && !node().find<RigidObject>())
+      throw error("acts on a Rigid3d body here (a MechanicalObject template=\"Rigid3d\" in its node)");
+    body_ = &contextRigid(*this, "mstate");
+    for (int i : attrs_.ints("indices"))
+      if (i != 0) throw error("indices", "a Rigid3d object has one frame (index 0), got " + std::to_string(i));
+    if (attrs_.isSet("coordinates")) throw error("coordinates", "only the whole velocity (all six components) is prescribed here");
+    times_ = attrs_.reals("keyTimes");
+    for (size_t k = 1; k < times_.size(); ++k)
+      if (!(times_[k] > times_[k - 1])) throw error("keyTimes", "must increase");
+    const auto& v = attrs_.reals("velocities");
+    if (v.size() != 6 * times_.size())
+      throw error("velocities", "needs 6 numbers (vx vy vz wx wy wz) per key time: " + std::to_string(times_.size()) +
+                                    " key times, " + std::to_string(v.size()) + " numbers");
+    for (size_t k = 0; k < times_.size(); ++k) {
+      v_.emplace_back(v[6 * k], v[6 * k + 1], v[6 * k + 2]);
+      w_.emplace_back(v[6 * k + 3], v[6 * k + 4], v[6 * k + 5]);
+    }
+    const bool keep = attrs_.boolean("continueAfterEnd");
+    if (body_->prescribedVelocity) throw error("rigid body '" + body_->name() + "' already has a prescribed velocity");
+    body_->prescribedVelocity = [this, keep](double t, Eigen::Vector3d& v, Eigen::Vector3d& w) {
+      if (t < times_.front() || (t >= times_.back() && !keep)) return false;
+      if (t >= times_.back()) {
+        v = v_.back();
+        w = w_.back();
+        return true;
+      }
+      const size_t k = std::upper_bound(times_.begin(), times_.end(), t) - times_.begin() - 1;
+      const double a = (t - times_[k]) / (times_[k + 1] - times_[k]);
+      v = (1 - a) * v_[k] + a * v_[k + 1];
+      w = (1 - a) * w_[k] + a * w_[k + 1];
+      return true;
+    };
+  }
+
+ private:
+  RigidObject* body_ = nullptr;
+  std::vector<double> times_;
+  std::vector<Eigen::Vector3d> v_, w_;
+};
+
 }  // namespace
 
 void registerDrivers(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "LinearVelocityProjectiveConstraint";
+    s.aliases = {"LinearVelocityConstraint"};
+    s.category = "constraint";
+    s.doc = "Prescribes an integrated rigid body's velocity (SOFA's LinearVelocityProjectiveConstraint): at each key time "
+            "a velocity vx vy vz wx wy wz, linear in between; over a step that starts at t the body moves with the "
+            "velocity at t. Before the first key, and after the last unless continueAfterEnd, the body is free.";
+    s.add(AttrSpec::reals("keyTimes").req().unit(Dimension::time()).help("key times, increasing"));
+    s.add(AttrSpec::reals("velocities").req().help("6 numbers per key time: vx vy vz wx wy wz"));
+    s.add(AttrSpec::ints("indices").def("0").help("the frame (a Rigid3d object has one: 0)"));
+    s.add(AttrSpec::boolean("continueAfterEnd").def("false").help("keep the last velocity after the last key time"));
+    s.add(AttrSpec::ints("coordinates").help("SOFA's subset of components; only all six are supported"));
+    s.add(AttrSpec::link("mstate").help("the Rigid3d MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<LinearVelocityConstraint>(c); };
+    r.add(std::move(s));
+  }
   {
     ComponentSpec s;
     s.name = "TrajectoryDriver";

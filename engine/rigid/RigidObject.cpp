@@ -38,7 +38,14 @@ void RigidObject::init() {
   }
   start.p = p0;
   start.q = q0;
-  if (attrs_.isSet("rest_position")) throw error("rest_position", "is not used by Rigid3d objects");
+  // SOFA writes a rigid body's rest pose beside its pose; nothing here has a rest pose of a rigid
+  // body, so only the same pose is accepted.
+  if (attrs_.isSet("rest_position")) {
+    auto rest = linkedReals("rest_position");
+    bool same = rest.size() == 7;
+    for (size_t k = 0; same && k < 7; ++k) same = std::abs(rest[k] - pos[k]) <= 1e-12 * (1 + std::abs(pos[k]));
+    if (!same) throw error("rest_position", "differs from position; a Rigid3d body's rest pose is not used here, give the same pose or none");
+  }
 }
 
 void RigidObject::Live::setMotion(const Eigen::Vector3d& pos, const Eigen::Quaterniond& rot, const Eigen::Vector3d& lin,

@@ -1,11 +1,13 @@
 // A rigid body's state (SOFA's MechanicalObject template="Rigid3d"): one frame, position and
-// orientation, with its velocity. In Viscera rigid bodies are instruments: their motion is
-// prescribed by a driver (a trajectory, key frames, robot kinematics) and the contact wrench on
-// them is recorded, not integrated.
+// orientation, with its velocity. Instruments are driven: their motion is prescribed by a driver
+// (a trajectory, key frames, robot kinematics) and the contact wrench on them is recorded. A body
+// with a mass and an ODE solver in its node and no driver is integrated (RigidDynamics.h).
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
+#include <functional>
 
 #include "core/State.h"
 #include "core/Component.h"
@@ -42,8 +44,15 @@ class RigidObject : public Component, public Stateful {
   Eigen::Quaterniond q0 = Eigen::Quaterniond::Identity();
   // The pose and velocity at the start of a simulation (a driver sets them at init).
   Live start;
-  double mass = 0;  // informative: the body is driven
+  // Mass and inertia about the frame's origin in the body's frame (UniformMass); no mass: none set.
+  double mass = 0;
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
   bool driven = false;  // a driver sets the motion
+  // Held velocity components (world x y z translation, then rotation), by projective constraints.
+  std::array<bool, 6> held{};
+  // A prescribed velocity (LinearVelocityProjectiveConstraint): true with the linear and angular
+  // velocity when one applies over the step that starts at t; the body then moves with it.
+  std::function<bool(double t, Eigen::Vector3d& v, Eigen::Vector3d& w)> prescribedVelocity;
 };
 
 // True for the rigid state templates ("Rigid3d", "Rigid3", "Rigid3f").

@@ -1,7 +1,11 @@
-// EulerImplicitSolver in SOFA's formulation (one linear solve per step):
-//   [(1 + h rM) M - h (h + rK) K] dv = h [f(x, v) + (h + rK) K v - rM M v],
-//   where contact stiffness (not Rayleigh damped) enters with h in place of h + rK;
+// EulerImplicitSolver in SOFA's formulation (one linear solve per step), with a = h (or h / 2 with
+// trapezoidalScheme):
+//   [(1 + a rM) M - a (a + rK) K] dv = h [f(x, v) + (a + rK) K v - rM M v],
+//   where contact stiffness (not Rayleigh damped) enters with a in place of a + rK;
 //   v <- v + dv, x <- x + h v; fixed nodes are projected out of the system.
+// firstOrder (SOFA's first-order system x' = v = M^-1 f, no Rayleigh damping):
+//   (M - a K) v_new = f(x, v),  x <- x + h v_new.
+// In the node of a rigid body it integrates the body (RigidDynamics.h).
 #include <cmath>
 #include <memory>
 
@@ -9,7 +13,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
-#include "engine/rigid/RigidObject.h"
+#include "engine/rigid/RigidDynamics.h"
 #include "solvers/linear/LinearSolver.h"
 #include "solvers/ode/OdeCommon.h"
 
@@ -39,15 +43,22 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   void init() override {
     rM_ = attrs_.real("rayleighMass");
     rK_ = attrs_.real("rayleighStiffness");
+    firstOrder_ = attrs_.boolean("firstOrder");
+    tr_ = attrs_.boolean("trapezoidalScheme") ? 0.5 : 1.0;
+    if (firstOrder_ && (rM_ != 0 || rK_ != 0)) {
+      scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "': the first-order scheme has no Rayleigh "
+                      "damping; rayleighMass and rayleighStiffness are not used (as in SOFA)");
+      rM_ = rK_ = 0;
+    }
     vdamping_ = attrs_.real("vdamping");
-    if ((idle_ = idleInRigidNode(*this))) return;
+    if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     linear_ = findLinearSolver(*this);
     if (linear_->needsMatrix()) sys_->prepareAssembly();
   }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
-    if (idle_) return std::nullopt;
+    if (rigid_) return rigid_->step(st, t, h, stepIndex, rM_);
     Live& l = stateIn<Live>(st);
     MechanicalObject::Live& s = sys_->state().live(st);
     const int n = sys_->nodes();
@@ -55,11 +66,12 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     Eigen::Matrix3Xd& f = s.f;
     sys_->computeForce(st, s.x, s.v, f);
 
-    const double mFact = 1.0 + h * rM_;
-    const double kFact = -h * (h + rK_);
-    // Contact stiffness is not Rayleigh damped: its K enters as -h^2 K (and h K v), not
-    // -h (h + rK) K, hence the scale h / (h + rK) on the undamped fields.
-    const double uScale = h / (h + rK_);
+    const double a = tr_ * h;
+    const double mFact = firstOrder_ ? 1.0 : 1.0 + a * rM_;
+    const double kFact = firstOrder_ ? -a : -a * (a + rK_);
+    // Contact stiffness is not Rayleigh damped: its K enters as -a^2 K (and a K v), not
+    // -a (a + rK) K, hence the scale a / (a + rK) on the undamped fields.
+    const double uScale = a / (a + rK_);
     Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
     LinearProblem problem;
     BlockSparseMatrix& A = l.A;
@@ -91,7 +103,8 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     }
     Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, n);
     if (rM_ != 0) sys_->addMdx(s.v, Mv, 1.0);
-    Eigen::Matrix3Xd b = h * (f + (h + rK_) * Kv - rM_ * Mv);
+    // First order: the unknown is the new velocity itself.
+    Eigen::Matrix3Xd b = firstOrder_ ? Eigen::Matrix3Xd(f) : Eigen::Matrix3Xd(h * (f + (a + rK_) * Kv - rM_ * Mv));
     sys_->project(b);
     Eigen::VectorXd bv = Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n);
     Eigen::VectorXd& dv = l.dv;
@@ -106,7 +119,8 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       d.object = sys_->state().name();
       return d;
     }
-    s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
+    if (firstOrder_) s.v = Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
+    else s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
     if (vdamping_ > 0) s.v *= std::exp(-h * vdamping_);
     s.x += h * s.v;
     if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {
@@ -118,15 +132,20 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     return std::nullopt;
   }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }
-  // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F.
+  // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F (first order:
+  // A v = F, so h A^-1 F and A^-1 F).
   std::optional<StepResponse> stepResponse(double h) const override {
-    if (idle_) return std::nullopt;
-    return StepResponse{1.0 + h * rM_, -h * (h + rK_), h * h, h};
+    if (rigid_) return std::nullopt;
+    const double a = tr_ * h;
+    if (firstOrder_) return StepResponse{1.0, -a, h, 1.0};
+    return StepResponse{1.0 + a * rM_, -a * (a + rK_), h * h, h};
   }
 
  private:
   double rM_ = 0, rK_ = 0, vdamping_ = 0;
-  bool idle_ = false;
+  double tr_ = 1.0;  // 1/2 with the trapezoidal scheme
+  bool firstOrder_ = false;
+  std::unique_ptr<RigidBodyIntegrator> rigid_;  // set in a rigid body's node
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
 };
@@ -140,13 +159,6 @@ LinearSolver* findLinearSolver(Component& c) {
   return l;
 }
 
-bool idleInRigidNode(Component& c) {
-  if (c.node().find<MechanicalObject>() || !c.node().find<RigidObject>()) return false;
-  c.scene().addNote(c.loc().str() + ": note: " + c.typeName() + " '" + c.name() + "' is in the node of rigid body '" +
-                    c.node().find<RigidObject>()->name() + "', which is driven, not integrated: the solver stays idle");
-  return true;
-}
-
 void registerEulerImplicit(Registry& r) {
   ComponentSpec s;
   s.name = "EulerImplicitSolver";
@@ -156,6 +168,10 @@ void registerEulerImplicit(Registry& r) {
           "formulation). The linear solver is the one in the same node.";
   s.add(AttrSpec::real("rayleighStiffness").def("0").atLeast(0).help("Rayleigh damping proportional to stiffness"));
   s.add(AttrSpec::real("rayleighMass").def("0").atLeast(0).help("Rayleigh damping proportional to mass"));
+  s.add(AttrSpec::boolean("firstOrder").def("false").help(
+      "SOFA's first-order scheme: (M - dt K) v = f, then x += dt v (velocities carry nothing over; no Rayleigh damping)"));
+  s.add(AttrSpec::boolean("trapezoidalScheme").def("false").help(
+      "SOFA's trapezoidal variant: the matrix and the K v term with dt / 2 in place of dt"));
   s.add(AttrSpec::real("vdamping").def("0").atLeast(0).unit(Dimension::frequency()).help("velocity damping: v *= exp(-dt vdamping)"));
   s.factory = [](BuildContext& c) { return std::make_unique<EulerImplicitSolver>(c); };
   r.add(std::move(s));

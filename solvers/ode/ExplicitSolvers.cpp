@@ -22,7 +22,7 @@ class ExplicitSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
   void init() override {
-    if ((idle_ = idleInRigidNode(*this))) return;
+    if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) return;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     // A consistent mass is not inverted node by node: M a = f is solved.
     if (sys_->consistentMass()) linear_ = findLinearSolver(*this);
@@ -56,7 +56,7 @@ class ExplicitSolver : public Component, public OdeSolver, public Stateful {
     return std::nullopt;
   }
 
-  bool idle_ = false;
+  std::unique_ptr<RigidBodyIntegrator> rigid_;  // set in a rigid body's node
   std::unique_ptr<MechanicalSystem> sys_;
 
  private:
@@ -107,10 +107,12 @@ class EulerExplicitSolver : public ExplicitSolver {
   void init() override {
     symplectic_ = attrs_.boolean("symplectic");
     ExplicitSolver::init();
+    if (rigid_ && !rigid_->idle() && !symplectic_)
+      throw error("symplectic", "a rigid body is integrated with the symplectic step only (v first, then the pose)");
   }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
-    if (idle_) return std::nullopt;
+    if (rigid_) return rigid_->step(st, t, h, stepIndex, 0.0);
     MechanicalObject::Live& s = sys_->state().live(st);
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     Eigen::Matrix3Xd a;
@@ -137,9 +139,15 @@ class EulerExplicitSolver : public ExplicitSolver {
 class RungeKutta4Solver : public ExplicitSolver {
  public:
   using ExplicitSolver::ExplicitSolver;
+  void init() override {
+    ExplicitSolver::init();
+    if (rigid_ && !rigid_->idle())
+      throw error("does not integrate rigid bodies; use EulerImplicitSolver or EulerExplicitSolver in the node of '" +
+                  rigid_->body().name() + "'");
+  }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
-    if (idle_) return std::nullopt;
+    if (rigid_) return std::nullopt;  // a held or driven body
     MechanicalObject::Live& s = sys_->state().live(st);
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     // Stage k: velocity v_k (the slope of x) and acceleration a_k (the slope of v) at the point

@@ -53,7 +53,12 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     relRes_ = attrs_.real("relative_residual_tolerance_threshold");
     absCorr_ = attrs_.real("absolute_correction_tolerance_threshold");
     exact_ = attrs_.boolean("exactTangent");
-    if ((idle_ = idleInRigidNode(*this))) return;
+    if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) {
+      if (!rigid_->idle())
+        throw error("does not solve rigid bodies; use EulerImplicitSolver or EulerExplicitSolver in the node of '" +
+                    rigid_->body().name() + "'");
+      return;
+    }
     sys_ = std::make_unique<MechanicalSystem>(*this);
     if (exact_) {
       for (ForceField* f : sys_->forceFields()) f->setExactTangent(true);
@@ -64,7 +69,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
   }
 
   std::optional<Diverged> step(State& st, double t, double, int stepIndex) const override {
-    if (idle_) return std::nullopt;
+    if (rigid_) return std::nullopt;
     Live& l = stateIn<Live>(st);
     MechanicalObject::Live& s = sys_->state().live(st);
     BlockSparseMatrix& K = l.K;
@@ -130,7 +135,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
   }
   // Equilibrium -K dx = F: positions move by (-K)^-1 F.
   std::optional<StepResponse> stepResponse(double) const override {
-    if (idle_) return std::nullopt;
+    if (rigid_) return std::nullopt;
     return StepResponse{0.0, -1.0, 1.0, 0.0};
   }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).iterationsDone; }
@@ -138,7 +143,8 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
  private:
   int iterations_ = 10;
   double absRes_ = 1e-10, relRes_ = 1e-10, absCorr_ = 1e-12;
-  bool exact_ = true, idle_ = false;
+  bool exact_ = true;
+  std::unique_ptr<RigidBodyIntegrator> rigid_;  // a held or driven body's node
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
 };

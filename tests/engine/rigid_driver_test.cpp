@@ -175,9 +175,11 @@ TEST(RigidBody, WrongPositionCountIsAnErrorNamingTheAttribute) {
   EXPECT_NE(vel.find("MechanicalObject.velocity"), std::string::npos) << vel;
 }
 
-TEST(RigidBody, MassAndSolverInTheRigidNodeAreAcceptedAndIdle) {
+// A driven body's own mass and solver (a SOFA instrument node): the driver moves it, the solver idles.
+TEST(RigidBody, MassAndSolverBesideADriverAreAcceptedAndIdle) {
   auto s = build(rigidScene(R"(position="1 2 3 0 0 0 1" velocity="0.5 0 0 0 0 0")",
-                            R"(    <UniformMass name="mass" totalMass="0.25"/>
+                            R"(    <LinearMovementConstraint keyTimes="0 10" movements="0 0 0 0 0 0  0 0 0 0 0 0"/>
+    <UniformMass name="mass" totalMass="0.25"/>
     <EulerImplicitSolver name="ode"/>
     <CGLinearSolver name="cg" iterations="10" tolerance="1e-9" threshold="1e-12"/>)"));
   Simulation sim(*s);
@@ -189,7 +191,7 @@ TEST(RigidBody, MassAndSolverInTheRigidNodeAreAcceptedAndIdle) {
     return all;
   }();
   EXPECT_TRUE(contains(s->notes(), "'tool'", "driven, not integrated"));
-  // The body is not integrated: no gravity, its velocity does not move it.
+  // The body is not integrated: no gravity, and the driver holds it.
   for (int k = 0; k < 5; ++k) ASSERT_FALSE(sim.step().has_value());
   EXPECT_EQ(b.live(sim.state()).p, Vector3d(1, 2, 3));
   EXPECT_EQ(b.live(sim.state()).q.coeffs(), Quaterniond::Identity().coeffs());

@@ -1,0 +1,49 @@
+// The motion of a rigid body that is integrated, not driven: a Rigid3d MechanicalObject with a
+// UniformMass and an ODE solver in its node, and no driver. Newton-Euler in the world frame:
+//   (1 + h rM) m dv = h (F - rM m v)
+//   (1 + h rM) I dw = h (T - w x I w - rM I w),   I = R I_body R^T,
+// the linearly implicit Euler step of SOFA's EulerImplicitSolver for a body without stiffness (and
+// symplectic Euler with rM = 0); then held components are zeroed, p += h v and the orientation
+// turns by exp(h w). F and T are gravity and the forces on the body's mapped states (RigidMapping),
+// taken at the step start; the gyroscopic term w x I w is explicit. A prescribed velocity
+// (LinearVelocityProjectiveConstraint) replaces the dynamics while it applies.
+// SOFA's rigid mass keeps the inertia in the world frame, unturned, and has no gyroscopic term:
+// the two agree for the default inertia (the mass times the identity).
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "engine/Roles.h"
+
+namespace viscera {
+
+class Component;
+class RigidMapping;
+class RigidObject;
+class State;
+
+class RigidBodyIntegrator {
+ public:
+  // The integrator of the rigid body in `solver`'s node, when that node holds a rigid body and no
+  // Vec3d one. Null when the node holds no rigid body; when the body is driven or has no mass the
+  // integrator holds it still (idle(), with a note).
+  static std::unique_ptr<RigidBodyIntegrator> forSolver(Component& solver);
+
+  bool idle() const { return idle_; }
+  RigidObject& body() const { return *body_; }
+  // Force and torque (about the body's origin) at state s: gravity and the mapped states' forces.
+  void wrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const;
+  // One step of size h with Rayleigh mass damping rM; a non-finite result is refused.
+  std::optional<Diverged> step(State& s, double t, double h, int stepIndex, double rayleighMass) const;
+
+ private:
+  RigidObject* body_ = nullptr;
+  bool idle_ = true;
+  Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
+  std::vector<const RigidMapping*> mappings_;
+};
+
+}  // namespace viscera
