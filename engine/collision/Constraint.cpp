@@ -398,6 +398,9 @@ void registerConstraintContact(Registry& r) {
     s.add(AttrSpec::boolean("initial_guess").def("true").help(
         "accepted for SOFA scenes (a warm start from the last step's forces): the iteration starts from zero forces, "
         "and converges to the same forces within the tolerance"));
+    s.add(AttrSpec::boolean("scaleTolerance").def("true").help(
+        "accepted for SOFA scenes (SOFA's tolerance times the number of rows); the tolerance here is relative to the "
+        "largest contact force"));
     s.add(AttrSpec::boolean("multi_grid").def("false").help(
         "accepted for SOFA scenes (a coarse-level start for large problems): the result is the same within the tolerance"));
     s.add(AttrSpec::boolean("computeConstraintForces").def("true").help("accepted for SOFA scenes; forces are always computed"));

@@ -202,6 +202,7 @@ void registerVTKExporter(Registry& r) {
   s.add(AttrSpec::boolean("XMLformat").def("true").help("accepted for SOFA compatibility; output is always VTK XML (.vtu, .vtp for a visual surface)"));
   s.add(AttrSpec::string("position").def("").help("accepted for SOFA compatibility; the node's positions are written"));
   s.add(AttrSpec::boolean("edges").def("false").help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::boolean("quads").def("false").help("accepted for SOFA compatibility; a visual surface is written with its triangles"));
   s.add(AttrSpec::boolean("triangles").def("false").help("accepted for SOFA compatibility; a visual surface is written with its triangles"));
   s.add(AttrSpec::boolean("tetras").def("true").help("accepted for SOFA compatibility; tetrahedra are written"));
   s.add(AttrSpec::boolean("overwrite").def("false").help("accepted for SOFA compatibility"));

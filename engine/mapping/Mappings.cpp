@@ -36,6 +36,10 @@ const Node* linkedNode(const Node& from, const std::string& link) {
       const Node* next = nullptr;
       for (const auto& child : node->children())
         if (child->name() == part) next = child.get();
+      // As SOFA's context lookup, a leading name that is no child may name this node or one above.
+      if (!next && start - part.size() - 1 == 0 && path[0] != '/')
+        for (const Node* up = node; up && !next; up = up->parent())
+          if (up->name() == part) next = up;
       node = next;
     }
     if (!node) return nullptr;
@@ -315,6 +319,7 @@ void addMappingAttributes(ComponentSpec& s) {
   s.add(AttrSpec::boolean("mapConstraints").def("true").help(noEffect));
   s.add(AttrSpec::boolean("mapMasses").def("true").help(noEffect));
   s.add(AttrSpec::boolean("mapMatrices").def("false").help(noEffect));
+  s.add(AttrSpec::boolean("isMechanical").def("true").help(noEffect));
   s.add(AttrSpec::boolean("applyRestPosition").def("false").help(
       "accepted for SOFA scenes; the surface's rest positions are its own"));
 }

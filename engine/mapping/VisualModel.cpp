@@ -183,6 +183,7 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));
   s.add(AttrSpec::string("texturename").help(drawingOnly));
+  for (const char* gl : {"blendEquation", "sfactor", "dfactor", "primitiveType"}) s.add(AttrSpec::string(gl).help(drawingOnly));
   s.add(AttrSpec::reals("normals").help(drawingOnly));
   for (const char* flag : {"useNormals", "updateNormals", "computeTangents", "handleDynamicTopology"})
     s.add(AttrSpec::boolean(flag).help(drawingOnly));

@@ -5,6 +5,9 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
+#include "solvers/linear/BlockSparseMatrix.h"
+#include "core/State.h"
+#include <cmath>
 
 namespace viscera {
 
@@ -162,6 +165,69 @@ class BoxROI : public Component {
   std::vector<int> indices_;
 };
 
+// SOFA's PlaneForceField: a penalty half-space. A node at signed distance d = x.n - d0 < 0 gets
+// f = -k d n + c d v (the damping grows with the depth, against the node's whole velocity), and
+// -k n n^T in the stiffness (the damping stays out of the matrix, as in SOFA).
+class PlaneForceField : public Component, public ForceField, public Stateful {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  struct Live : ComponentStateOf<Live> {
+    std::vector<char> inside;  // per node, below the plane at the last addForce
+    void save(StateWriter& out) const override { out.put(inside); }
+    void load(StateReader& in) override { in.get(inside); }
+  };
+  std::unique_ptr<ComponentState> initialState() const override {
+    auto l = std::make_unique<Live>();
+    l->inside.assign(state_->size(), 0);
+    return l;
+  }
+  void init() override {
+    state_ = &contextState(*this);
+    const auto& n = attrs_.reals("normal");
+    n_ = Eigen::Vector3d(n[0], n[1], n[2]);
+    if (!(n_.norm() > 0)) throw error("normal", "must not be zero");
+    n_.normalize();
+    d_ = attrs_.real("d");
+    k_ = attrs_.real("stiffness");
+    c_ = attrs_.real("damping");
+    if (attrs_.boolean("bilateral")) throw error("bilateral", "only the one-sided plane is handled");
+  }
+  void addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, Eigen::Matrix3Xd& f) const override {
+    std::vector<char>& inside = stateIn<Live>(s).inside;
+    for (Eigen::Index i = 0; i < x.cols(); ++i) {
+      const double depth = x.col(i).dot(n_) - d_;
+      inside[i] = depth < 0;
+      if (inside[i]) f.col(i) += -k_ * depth * n_ + c_ * depth * v.col(i);
+    }
+  }
+  void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
+    const std::vector<char>& inside = stateIn<Live>(s).inside;
+    for (Eigen::Index i = 0; i < dx.cols(); ++i)
+      if (inside[i]) df.col(i) -= kFactor * k_ * n_.dot(dx.col(i)) * n_;
+  }
+  // Any node may go below the plane: every diagonal block.
+  void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override {
+    for (int i = 0; i < state_->size(); ++i) pairs.push_back({i, i});
+  }
+  void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override {
+    const std::vector<char>& inside = stateIn<Live>(s).inside;
+    const Eigen::Matrix3d nn = n_ * n_.transpose();
+    for (size_t i = 0; i < inside.size(); ++i)
+      if (inside[i]) K.block(K.diagonalSlot(static_cast<int>(i))) -= kFactor * k_ * nn;
+  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
+    double e = 0;
+    for (Eigen::Index i = 0; i < x.cols(); ++i) e += 0.5 * k_ * std::pow(std::min(0.0, x.col(i).dot(n_) - d_), 2);
+    return e;
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  Eigen::Vector3d n_ = Eigen::Vector3d::UnitY();
+  double d_ = 0, k_ = 500, c_ = 5;
+};
+
 class ConstantForceField : public Component, public ForceField {
  public:
   using Component::Component;
@@ -283,6 +349,24 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::ints("indices").help("SOFA's output: the selection, computed from the box; a value in the scene is replaced, as in SOFA"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<BoxROI>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "PlaneForceField";
+    s.category = "forcefield";
+    s.doc = "A penalty half-space (SOFA's PlaneForceField): a node below the plane x.n = d, at depth d_i < 0, gets "
+            "-stiffness d_i n + damping d_i v; its stiffness -stiffness n n^T enters the implicit system.";
+    s.add(AttrSpec::reals("normal", 3).def("0 1 0").help("the plane's normal, towards the free side (normalised)"));
+    s.add(AttrSpec::real("d").def("0").unit(Dimension::length()).help("the plane's offset along the normal"));
+    s.add(AttrSpec::real("stiffness").def("500").atLeast(0).unit(Dimension::stiffness()).help("penalty stiffness"));
+    s.add(AttrSpec::real("damping").def("5").atLeast(0).unit({0, 1, -1}).help("damping per unit depth (force per speed per length)"));
+    s.add(AttrSpec::boolean("bilateral").def("false").help("SOFA's two-sided plane; only false is handled"));
+    for (const char* draw : {"showPlane", "draw"}) s.add(AttrSpec::boolean(draw).def("false").help("drawing only"));
+    s.add(AttrSpec::real("showPlaneSize").def("10").help("drawing only"));
+    s.add(AttrSpec::string("color").help("drawing only"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<PlaneForceField>(c); };
     r.add(std::move(s));
   }
   {

@@ -157,7 +157,7 @@ void registerStaticSolver(Registry& r) {
   s.aliases = {"NewtonRaphsonSolver"};
   s.category = "solver";
   s.doc = "Static equilibrium by Newton's method each step (loads applied at once; inertia ignored).";
-  s.add(AttrSpec::integer("newton_iterations").def("20").atLeast(1).help("maximum Newton iterations per step"));
+  s.add(AttrSpec::integer("newton_iterations").alias("maxNbIterationsNewton").def("20").atLeast(1).help("maximum Newton iterations per step"));
   s.add(AttrSpec::real("absolute_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| falls to this"));
   s.add(AttrSpec::real("relative_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| / ||f0|| falls to this"));
   s.add(AttrSpec::real("absolute_correction_tolerance_threshold").def("1e-12").atLeast(0).help("stop when ||dx|| falls to this"));

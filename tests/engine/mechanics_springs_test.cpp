@@ -112,3 +112,53 @@ TEST(SofaSurfaces, Tetra2TriangleMappingFillsTheBoundary) {
   ASSERT_TRUE(container && container->field("triangles", tris));
   EXPECT_EQ(tris.values.size(), 12u * 3);  // the cube's six faces, two triangles each
 }
+
+namespace {
+
+// The position of node `i` of the first MechanicalObject after `steps` steps of `text`.
+Eigen::Vector3d after(const std::string& text, int steps, int i) {
+  auto scene = buildScene(io::parseSceneText(text, "listed.xml"));
+  Simulation sim(*scene);
+  for (int k = 0; k < steps; ++k) EXPECT_FALSE(sim.step());
+  return scene->all<MechanicalObject>().front()->x(sim.state()).col(i);
+}
+
+}  // namespace
+
+// A node hanging from a fixed one on a SpringForceField: at equilibrium the spring carries the
+// weight, so it is stretched by m g / k beyond its rest length.
+TEST(ListedSprings, AHangingMassStretchesTheSpringByItsWeightOverK) {
+  const Eigen::Vector3d x = after(R"(<Node name="root" gravity="0 -9.81 0">
+    <StaticSolver newton_iterations="30"/>
+    <MechanicalObject position="0 0 0  0 -1 0"/>
+    <UniformMass vertexMass="0.5"/>
+    <FixedConstraint indices="0"/>
+    <SpringForceField spring="0 1 200 0 0.8"/>
+  </Node>)", 1, 1);
+  EXPECT_NEAR(x.y(), -(0.8 + 0.5 * 9.81 / 200), 1e-10);
+  EXPECT_NEAR(x.x(), 0, 1e-12);
+}
+
+// A node resting on a PlaneForceField (held in x and y: the plane gives no stiffness along it)
+// sinks until the penalty carries its weight: m g / k.
+TEST(PlaneForceField, ANodeRestsAtItsWeightOverKBelowThePlane) {
+  const Eigen::Vector3d x = after(R"(<Node name="root" gravity="0 0 -10">
+    <StaticSolver newton_iterations="30"/>
+    <MechanicalObject position="0.3 0.2 0.49"/>
+    <UniformMass vertexMass="2"/>
+    <PartialFixedConstraint indices="0" fixedDirections="1 1 0"/>
+    <PlaneForceField normal="0 0 2" d="0.5" stiffness="1000"/>
+  </Node>)", 1, 0);
+  EXPECT_NEAR(x.z(), 0.5 - 2 * 10 / 1000.0, 1e-10);
+}
+
+// SOFA's first-order implicit Euler: (M - h K) v = f, x += h v. For a free node under gravity
+// v = g after every step (no inertia is carried over), so x moves by h g a step.
+TEST(ListedSprings, FirstOrderEulerTakesTheVelocityFromTheForce) {
+  const Eigen::Vector3d x = after(R"(<Node name="root" gravity="0 -9.81 0" dt="0.1">
+    <EulerImplicitSolver firstOrder="true"/><CGLinearSolver iterations="20" tolerance="1e-12" threshold="1e-20"/>
+    <MechanicalObject position="0 0 0"/>
+    <UniformMass vertexMass="3"/>
+  </Node>)", 4, 0);
+  EXPECT_NEAR(x.y(), 4 * 0.1 * -9.81, 1e-9);
+}
