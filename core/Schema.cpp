@@ -59,7 +59,8 @@ bool isCosmeticAttribute(const std::string& name) {
                                 "computeQuads", "computeHexaList", "computeQuadList", "computeTriangleList",
                                 "computeEdgeList", "computePointList", "isVisible",
                                 // SOFA: OpenGL blending of a visual model
-                                "blendEquation", "sourceBlendingFactor", "destinationBlendingFactor",
+                                "blendEquation", "sourceBlendingFactor", "destinationBlendingFactor", "sfactor",
+                                "dfactor", "primitiveType",
                                 // SOFA: assemble the element matrices into one global matrix (same forces)
                                 "assembling"};
   for (const char* e : exact)

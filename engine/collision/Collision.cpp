@@ -200,6 +200,8 @@ void SurfaceCollisionModel::init() {
   fitBoxes(X, *bvh);
   bvh->tree.build(bvh->boxes);
   bvh0_ = std::move(bvh);
+  static_ = !rigid_;
+  for (const Node* n = &state_->node(); n && static_; n = n->parent()) static_ = !n->find<OdeSolver>();
 }
 
 namespace {
@@ -289,16 +291,66 @@ void SurfaceCollisionModel::refit(State& st, const Eigen::Matrix3Xd& x) const {
 
 void SurfaceCollisionModel::detect(const State& st, const SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x,
                                    const ContactSettings& s, std::vector<Contact>& out) const {
+  const size_t first = out.size();
+  detectAt(st, sphere.centre(st), sphere.radius(), sphere.radius(), x, s, out);
+  for (size_t i = first; i < out.size(); ++i) out[i].sphere = &sphere;
+}
+
+void SurfaceCollisionModel::detectVertices(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s,
+                                           std::vector<Contact>& here, std::vector<Contact>& there) const {
+  const Eigen::Matrix3Xd& x = surfacePositions(st);
+  const Eigen::Matrix3Xd& y = other.surfacePositions(st);
+  // A vertex may be found inside this surface down to the alarm distance (or a tenth of an edge).
+  const double depth = std::max(s.alarmDistance, 0.1 * meanEdge_);
+  // SOFA's penalty stiffness for a point: the two models' factors over the contact distance.
+  const double k = stiffness_ * other.stiffness_ / std::max(s.contactDistance, 1e-12 * std::max(meanEdge_, 1.0));
+  for (int v : other.verts_) {
+    const size_t first = here.size();
+    detectAt(st, y.col(v), 0.0, depth, x, s, here);
+    for (size_t i = first; i < here.size(); ++i) {
+      Contact& c = here[i];
+      c.partner = &other;
+      c.mirror = static_cast<int>(there.size());
+      c.k = k;
+      c.active = c.gap0 < 0;
+      // The mirror on the vertex: the same gap, the opposite normal, on the nodes the vertex follows.
+      Contact m;
+      m.partner = this;
+      m.mirror = static_cast<int>(i);
+      m.surface = &other;
+      m.feature = Feature::Vertex;
+      if (other.vertexMap_.empty()) {
+        m.nodes[0] = v;
+        m.w[0] = 1.0;
+        m.count = 1;
+      } else {
+        for (auto [node, w] : other.vertexMap_[v]) {
+          m.nodes[m.count] = node;
+          m.w[m.count] = w;
+          ++m.count;
+        }
+      }
+      m.n = -c.n;
+      // The vertex's own point at detection: its nodes' weighted sum (the vertex itself, or the
+      // body nodes a mapped vertex follows).
+      m.p0 = m.point(other.state_->x(st));
+      m.gap0 = c.gap0;
+      m.active = c.active;
+      m.k = k;
+      there.push_back(m);
+    }
+  }
+}
+
+void SurfaceCollisionModel::detectAt(const State& st, const Eigen::Vector3d& c, double R, double depth,
+                                     const Eigen::Matrix3Xd& x, const ContactSettings& s, std::vector<Contact>& out) const {
   const Bvh& bvh = *stateIn<Live>(st).bvh;
-  const Eigen::Vector3d c = sphere.centre(st);
-  const double R = sphere.radius();
-  const double reach = R + s.alarmDistance;
+  const double reach = std::max(R, depth) + s.alarmDistance;
   const geom::AabbTree::Box query(c - Eigen::Vector3d::Constant(reach), c + Eigen::Vector3d::Constant(reach));
 
   auto make = [&](Feature f, std::initializer_list<std::pair<int, double>> nw, const Eigen::Vector3d& q,
                   const Eigen::Vector3d& nrm, double dist) {
     Contact ct;
-    ct.sphere = &sphere;
     ct.surface = this;
     ct.feature = f;
     for (auto [node, w] : nw) {
@@ -342,7 +394,7 @@ void SurfaceCollisionModel::detect(const State& st, const SphereCollisionModel& 
       if (kind_ == Kind::Lines) return;
       const Eigen::Vector3d nf = (b - a).cross(cc - a).normalized();
       const double dist = d.dot(nf);  // signed: negative once the centre is under the face
-      if (dist - R >= s.alarmDistance || dist < -R) return;
+      if (dist - R >= s.alarmDistance || dist < -depth) return;
       if (!seen.insert({0, t}).second) return;
       make(Feature::Face, {{tri[0], cl.w[0]}, {tri[1], cl.w[1]}, {tri[2], cl.w[2]}}, cl.point, nf, dist);
       return;
@@ -401,10 +453,13 @@ void SurfaceCollisionModel::detect(const State& st, const SphereCollisionModel& 
 void SurfaceCollisionModel::Live::save(StateWriter& out) const {
   // A contact's sphere is written as its index among the scene's spheres.
   const auto spheres = model->scene().all<SphereCollisionModel>();
+  const auto surfaces = model->scene().all<SurfaceCollisionModel>();
   out.put(penalty);
   out.count(static_cast<std::int64_t>(contacts.size()));
   for (const Contact& c : contacts) {
-    out.put(static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()));
+    out.put(c.sphere ? static_cast<int>(std::find(spheres.begin(), spheres.end(), c.sphere) - spheres.begin()) : -1);
+    out.put(c.partner ? static_cast<int>(std::find(surfaces.begin(), surfaces.end(), c.partner) - surfaces.begin()) : -1);
+    out.put(c.mirror);
     out.put(c.feature);
     out.put(c.count);
     for (int k = 0; k < c.count; ++k) out.put(c.nodes[k]);
@@ -420,6 +475,7 @@ void SurfaceCollisionModel::Live::save(StateWriter& out) const {
 
 void SurfaceCollisionModel::Live::load(StateReader& in) {
   const auto spheres = model->scene().all<SphereCollisionModel>();
+  const auto surfaces = model->scene().all<SurfaceCollisionModel>();
   const int nodes = model->mstate().size();
   in.get(penalty);
   const std::int64_t n = in.count();
@@ -428,8 +484,14 @@ void SurfaceCollisionModel::Live::load(StateReader& in) {
   for (Contact& c : cs) {
     int sphere = -1;
     in.get(sphere);
-    if (sphere < 0 || sphere >= static_cast<int>(spheres.size())) in.mismatch("a contact with a sphere it does not have");
-    c.sphere = spheres[sphere];
+    if (sphere < -1 || sphere >= static_cast<int>(spheres.size())) in.mismatch("a contact with a sphere it does not have");
+    c.sphere = sphere >= 0 ? spheres[sphere] : nullptr;  // -1: a contact between two bodies
+    int partner = -1;
+    in.get(partner);
+    in.get(c.mirror);
+    if (partner < -1 || partner >= static_cast<int>(surfaces.size()) || (partner >= 0) == (sphere >= 0) || (partner >= 0 && c.mirror < 0))
+      in.mismatch("a contact with a partner it does not have");
+    c.partner = partner >= 0 ? surfaces[partner] : nullptr;
     c.surface = model;
     in.get(c.feature);
     in.get(c.count);
@@ -455,15 +517,17 @@ void SurfaceCollisionModel::setContacts(State& st, std::vector<Contact> c, const
   // SOFA's penalty: each model's contactStiffness factor multiplied, over the distance the contact
   // keeps between the sphere's centre and the surface (contactDistance plus the radius).
   for (Contact& c : l.contacts)
-    c.k = c.sphere->contactStiffness() * stiffness_ / (s.contactDistance + c.sphere->radius());
+    if (c.sphere) c.k = c.sphere->contactStiffness() * stiffness_ / (s.contactDistance + c.sphere->radius());
 }
 
 void SurfaceCollisionModel::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const {
   Live& l = stateIn<Live>(s);
   if (!l.penalty) return;
   for (Contact& c : l.contacts) {
-    const double g = c.gap(x);
-    c.active = g < 0;
+    const double g = gapAt(s, c, x);
+    // A contact between two bodies and its mirror push together or not at all: whether they do is
+    // decided at detection, before either body's solver moves it.
+    if (!c.partner) c.active = g < 0;
     if (!c.active) continue;
     const Eigen::Vector3d fc = c.k * g * c.n;
     for (int k = 0; k < c.count; ++k) f.col(c.nodes[k]) += c.w[k] * fc;
@@ -517,7 +581,16 @@ void SurfaceCollisionModel::addStiffness(const State& s, BlockSparseMatrix& K, d
 }
 
 void SurfaceCollisionModel::finishPenalty(State& s, const Eigen::Matrix3Xd& x) const {
-  for (Contact& c : stateIn<Live>(s).contacts) c.force = c.active ? Eigen::Vector3d(c.k * c.gap(x) * c.n) : Eigen::Vector3d::Zero();
+  for (Contact& c : stateIn<Live>(s).contacts) c.force = c.active ? Eigen::Vector3d(c.k * gapAt(s, c, x) * c.n) : Eigen::Vector3d::Zero();
+}
+
+double SurfaceCollisionModel::gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const {
+  double g = c.gap(x);
+  if (c.partner) {
+    const Contact& m = c.partner->contacts(s)[c.mirror];
+    g += c.n.dot(m.point(c.partner->state_->x(s)) - m.p0);
+  }
+  return g;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -656,53 +729,64 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
             return d;
           }
     }
-  for (const SurfaceCollisionModel* m : surfaces_) {
+  // Each surface's contacts: with the instruments' spheres, then, under the penalty response, with
+  // the vertices of other bodies' surfaces (both ways, as SOFA's point-triangle tests).
+  std::vector<std::vector<Contact>> found(surfaces_.size());
+  std::vector<ContactSettings> own(surfaces_.size(), settings_);
+  for (size_t i = 0; i < surfaces_.size(); ++i) {
+    const SurfaceCollisionModel* m = surfaces_[i];
     if (!m->active()) continue;
-    std::vector<Contact> found;
     // Broad phase: the hierarchy follows the surface once per step; each sphere then visits only
     // the triangles its inflated box touches.
     m->refit(s, m->surfacePositions(s));
     // A model's own contactDistance widens its contacts' (SOFA adds the models' to the intersection's).
-    ContactSettings own = settings_;
-    own.contactDistance += m->ownContactDistance();
-    own.alarmDistance += m->ownContactDistance();
-    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), own, found);
-    if (m->rigidBody() && !found.empty()) {
+    own[i].contactDistance += m->ownContactDistance();
+    own[i].alarmDistance += m->ownContactDistance();
+    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), own[i], found[i]);
+    if (m->rigidBody() && !found[i].empty()) {
       Diverged bad;
       bad.step = stepIndex;
       bad.time = t;
-      bad.reason = "the sphere '" + found.front().sphere->name() + "' touches the surface '" + m->name() + "' (" +
+      bad.reason = "the sphere '" + found[i].front().sphere->name() + "' touches the surface '" + m->name() + "' (" +
                    m->node().path() + ") of rigid body '" + m->rigidBody()->name() +
-                   "': contact on a rigid body's surface is not handled (only instruments' spheres against deformable "
-                   "surfaces)";
+                   "': contact of an instrument with a rigid body is not handled (only with deformable surfaces)";
       bad.object = m->rigidBody()->name();
       return bad;
     }
-    m->setContacts(s, std::move(found), own);
   }
-  // Surfaces of two bodies must stay apart: contact between deformable (or fixed) bodies is not
-  // handled, so a vertex coming within the alarm distance of another body's surface (at least a
-  // twentieth of the surface's mean edge) fails the step instead of passing through unseen.
-  for (SurfaceCollisionModel* a : surfaces_)
-    for (SurfaceCollisionModel* b : surfaces_) {
-      if (a == b || !a->active() || !b->active() || a->body() == b->body()) continue;
+  for (size_t i = 0; i < surfaces_.size(); ++i)
+    for (size_t j = 0; j < surfaces_.size(); ++j) {
+      const SurfaceCollisionModel *a = surfaces_[i], *b = surfaces_[j];
+      if (a == b || !a->active() || !b->active() || a->body() == b->body() || (a->isStatic() && b->isStatic())) continue;
+      if (settings_.response == ContactSettings::Response::Penalty) {
+        // The vertices of b against the features of a.
+        ContactSettings pair = settings_;
+        pair.contactDistance += a->ownContactDistance() + b->ownContactDistance();
+        pair.alarmDistance += a->ownContactDistance() + b->ownContactDistance();
+        a->detectVertices(s, *b, pair, found[i], found[j]);
+        continue;
+      }
+      // The constraint response handles instruments' spheres only: a vertex coming within the
+      // alarm distance of another body's surface (at least a twentieth of the surface's mean edge)
+      // fails the step instead of passing through unseen.
       const double margin =
           std::max({settings_.alarmDistance, settings_.contactDistance, 0.05 * std::max(a->meanEdgeLength(), b->meanEdgeLength())});
       const Eigen::Matrix3Xd& xa = a->surfacePositions(s);
       for (int v : a->vertices()) {
-        const double d = b->distanceTo(s, xa.col(v), margin, b->surfacePositions(s));
-        if (d < margin) {
+        if (b->distanceTo(s, xa.col(v), margin, b->surfacePositions(s)) < margin) {
           Diverged bad;
           bad.step = stepIndex;
           bad.time = t;
           bad.reason = "the surfaces of '" + a->name() + "' (" + a->node().path() + ") and '" + b->name() + "' (" +
-                       b->node().path() + ") touch: contact between two bodies is not handled (only instruments' spheres "
-                       "against surfaces)";
+                       b->node().path() + ") touch: the constraint response handles instruments' spheres against "
+                       "surfaces, not two bodies (the penalty response does)";
           bad.object = a->mstate().name();
           return bad;
         }
       }
     }
+  for (size_t i = 0; i < surfaces_.size(); ++i)
+    if (surfaces_[i]->active()) surfaces_[i]->setContacts(s, std::move(found[i]), own[i]);
   return std::nullopt;
 }
 
@@ -719,13 +803,14 @@ void CollisionPipeline::finish(State& st) const {
     if (settings_.response == ContactSettings::Response::Penalty) s->finishPenalty(st, s->mstate().x(st));
     for (const Contact& c : s->contacts(st)) {
       if (c.force.squaredNorm() == 0) continue;
+      ++total;
+      if (!c.sphere) continue;  // between two bodies: each side holds its own
       RigidObject::Live& b = c.sphere->body().live(st);
       const Eigen::Vector3d onBody = -c.force;
       const Eigen::Vector3d at = c.sphere->centre(st) - c.sphere->radius() * c.n;  // contact point on the sphere
       b.force += onBody;
       b.torque += (at - b.p).cross(onBody);
       ++b.contacts;
-      ++total;
     }
   }
   Live& l = stateIn<Live>(st);

@@ -1,4 +1,5 @@
-// Contact between rigid spheres (the instrument) and the boundary surface of deformable bodies.
+// Contact between rigid spheres (the instrument) and the boundary surface of deformable bodies,
+// and (penalty response) between the surfaces of two bodies.
 //
 // Per step: the instrument is moved to its end-of-step pose, then the pipeline finds, for each
 // sphere, the surface features (triangle interiors, edges, vertices) within the alarm distance
@@ -10,6 +11,14 @@
 //    system (the surface model is a ForceField of the tissue);
 //  - constraint: non-penetration with Coulomb friction, solved after the free motion by the
 //    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
+// Two bodies (penalty only): each vertex of one surface is a point of radius 0 against the other's
+// features, with SOFA's stiffness k1 k2 / contactDistance; the contact on the feature and its mirror
+// on the vertex (opposite normal, same gap, active together from detection) each act on their own
+// body, implicitly in that body's solve, with the other body where it stands (solvers run in turn,
+// as SOFA's: momentum is not exchanged exactly between two free bodies). A fixed surface (no
+// solver) takes its side without moving; a rigid body's side reaches it as a wrench (RigidMapping).
+// The constraint response still handles instruments' spheres only: a step in which two bodies'
+// surfaces touch fails, naming both.
 #pragma once
 
 #include <Eigen/Core>
@@ -35,7 +44,9 @@ enum class Feature { Face, Edge, Vertex };
 constexpr int kMaxContactNodes = 24;
 
 struct Contact {
-  const SphereCollisionModel* sphere = nullptr;
+  const SphereCollisionModel* sphere = nullptr;     // the instrument's sphere, or
+  const SurfaceCollisionModel* partner = nullptr;   // the other body's surface (penalty contact of two bodies)
+  int mirror = -1;                                  // then: the index of this contact's mirror in its contacts
   const SurfaceCollisionModel* surface = nullptr;
   Feature feature = Feature::Face;
   int count = 0;                    // nodes used: 3 (face), 2 (edge), 1 (vertex); more through a mapping
@@ -126,8 +137,11 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // state (SOFA's collision node under a body), the mapping's input.
   MechanicalObject& mstate() const override { return *state_; }
   // The rigid body whose surface this is (its state mapped by a RigidMapping), or null. A rigid
-  // body's surface moves with it and takes no contact: the step fails when something touches it.
+  // body's surface moves with it; its contacts with other bodies reach it as a wrench, and an
+  // instrument's sphere touching it fails the step.
   RigidObject* rigidBody() const { return rigid_; }
+  // A surface nothing integrates (SOFA's fixed obstacle: no ODE solver above its body, no rigid body).
+  bool isStatic() const { return static_; }
   // What moves the surface: the rigid body, else the body the forces act on.
   const void* body() const { return rigid_ ? static_cast<const void*>(rigid_) : static_cast<const void*>(state_); }
   // Where the surface is: the node's MechanicalObject (mapped or not).
@@ -151,11 +165,21 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   double distanceTo(const State& s, const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const;
   // Mean length of the surface's edges at rest.
   double meanEdgeLength() const { return meanEdge_; }
+  // The gap of contact c with this surface's body at x: its own linearised gap, plus, for a contact
+  // between two bodies, how far the other side has moved along the normal since detection (its
+  // solver may have run already this step: SOFA's solvers too run in turn and see each other's
+  // results).
+  double gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const;
   // Fits the bounding-volume hierarchy of `s` to positions x; call before detect() when x changed.
   void refit(State& s, const Eigen::Matrix3Xd& x) const;
   // Contacts with `sphere` for the positions x (the tissue at the step start), as fitted.
   void detect(const State& s, const SphereCollisionModel& sphere, const Eigen::Matrix3Xd& x,
               const ContactSettings& settings, std::vector<Contact>& out) const;
+  // Penalty contacts between this surface and the vertices of `other` (another body's surface):
+  // for each vertex within the alarm distance, a contact on this surface's closest feature and
+  // its mirror on the vertex, pushing the two apart. Both surfaces fitted to the step start.
+  void detectVertices(const State& s, const SurfaceCollisionModel& other, const ContactSettings& settings,
+                      std::vector<Contact>& here, std::vector<Contact>& there) const;
   // The contacts of the current step, with the response they get.
   void setContacts(State& s, std::vector<Contact> c, const ContactSettings& settings) const;
   std::vector<Contact>& contacts(State& s) const { return stateIn<Live>(s).contacts; }
@@ -173,12 +197,17 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
  private:
   // One box per primitive (triangle, or vertex for point models) at positions x.
   void fitBoxes(const Eigen::Matrix3Xd& x, Bvh& bvh) const;
+  // The contacts of a point c of radius R at positions x (as fitted): the features whose closest
+  // point is a local minimum of the distance, within the alarm distance, down to `depth` inside.
+  void detectAt(const State& st, const Eigen::Vector3d& c, double R, double depth, const Eigen::Matrix3Xd& x,
+                const ContactSettings& s, std::vector<Contact>& out) const;
   // Where the surface comes from: the `topology` link, else the nearest node's topology.
   Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
   MechanicalObject* state_ = nullptr;         // receives the forces
   MechanicalObject* surfaceState_ = nullptr;  // carries the surface
   RigidObject* rigid_ = nullptr;              // the rigid body it is on, if any
+  bool static_ = false;
   // Per surface vertex, the body's nodes and weights it is mapped from (empty: the same nodes).
   std::vector<std::vector<std::pair<int, double>>> vertexMap_;
   Kind kind_ = Kind::Triangles;

@@ -96,6 +96,7 @@ void registerCollision(Registry& r) {
     s.add(AttrSpec::real("angleCone").def("0").help("accepted for SOFA scenes; the exact Voronoi test is used"));
     s.add(AttrSpec::real("coneFactor").def("0.5").help("accepted for SOFA scenes; the exact Voronoi test is used"));
     s.add(AttrSpec::boolean("useLMDFilters").def("false").help("accepted for SOFA scenes; the exact Voronoi test is used"));
+    s.add(AttrSpec::boolean("filterIntersection").def("true").help("accepted for SOFA scenes; the exact Voronoi test is used"));
     s.add(AttrSpec::boolean("useSphereTriangle").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("usePointPoint").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("useLinePoint").def("true").help("accepted for SOFA scenes"));

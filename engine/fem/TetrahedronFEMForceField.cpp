@@ -25,6 +25,8 @@ void TetrahedronFEMForceField::init() {
   const std::string m = spec().find("method") ? attrs_.str("method") : spec().find("rotationMethod") ? "polar" : "small";
   method_ = m == "small" ? fem::Method::Small : m == "polar" || m == "svd" ? fem::Method::Polar : fem::Method::Large;
   svd_ = m == "svd";
+  if (spec().find("updateStiffnessMatrix") && attrs_.boolean("updateStiffnessMatrix"))
+    throw error("updateStiffnessMatrix", "element matrices are built once on the rest shape; only false is handled");
   exact_ = spec().find("exactTangent") && attrs_.boolean("exactTangent");
   if (svd_ && exact_) throw error("exactTangent", "is for methods large and polar; svd uses SOFA's tangent");
   tets_ = elementTetrahedra(contextTopology(*this));
@@ -202,6 +204,8 @@ void registerTetrahedronFEM(Registry& r) {
   s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
   s.add(AttrSpec::choice("method", {"large", "small", "polar", "svd"}).def("large").help("small | large | polar | svd"));
   s.add(AttrSpec::boolean("exactTangent").def("false").help("use the exact derivative of the corotational force (Newton)"));
+  s.add(AttrSpec::boolean("updateStiffnessMatrix").def("false").help(
+      "SOFA's rebuild of the element matrices from the rotated shape each step; only false (the rest shape's) is handled"));
   s.add(AttrSpec::link("topology").help("tetrahedral topology (default: the last one in the node, or the grid)"));
   s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
   s.factory = [](BuildContext& c) { return std::make_unique<TetrahedronFEMForceField>(c); };

@@ -3,6 +3,7 @@
 // the body's nodes).
 #include <algorithm>
 #include <cstdio>
+#include <limits>
 #include <string>
 
 #include "core/Registry.h"
@@ -183,8 +184,9 @@ class BarycentricMapping : public PointMapping {
   void init() override {
     resolveEnds();
     // SOFA's barycentric mappers: on tetrahedra, or on a grid's hexahedra (trilinear).
-    const TetList* tets = tetrahedraAbove(scene(), input_->node());
-    const Topology* grid = tets ? nullptr : hexahedraAbove(scene(), input_->node());
+    const Topology* volume = volumeAbove(scene(), input_->node());
+    const TetList* tets = volume && volume->tetrahedra().cols() > 0 ? &volume->tetrahedra() : nullptr;
+    const Topology* grid = tets ? nullptr : volume;
     const HexList* hexa = grid ? &grid->hexahedra() : nullptr;
     if (!tets && !hexa)
       throw error("input", "MechanicalObject '" + input_->name() +
@@ -303,6 +305,56 @@ class IdentityMapping : public PointMapping {
   }
 };
 
+// SOFA's SubsetMapping: output point i is input node indices[i]. Without indices, each output
+// point is the input node at its place (within `radius`), as SOFA pairs them at init.
+class SubsetMapping : public PointMapping {
+ public:
+  using PointMapping::PointMapping;
+
+  void init() override {
+    resolveEnds();
+    const int n = input_->size();
+    if (attrs_.isSet("indices")) {
+      index_ = linkedInts("indices");
+      if (static_cast<int>(index_.size()) != output_.size())
+        throw error("indices", "has " + std::to_string(index_.size()) + " nodes for the " + std::to_string(output_.size()) +
+                                   " points of '" + output_.name() + "'");
+      for (int i : index_)
+        if (i < 0 || i >= n) throw error("indices", "node " + std::to_string(i) + " is not a node of '" + input_->name() + "'");
+      return;
+    }
+    const double radius = attrs_.real("radius");
+    const Eigen::Matrix3Xd& X = input_->xInit;
+    index_.resize(output_.size());
+    for (int p = 0; p < output_.size(); ++p) {
+      int best = -1;
+      double bestD = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < n; ++i)
+        if (const double d = (X.col(i) - output_.initial.col(p)).norm(); d < bestD) bestD = d, best = i;
+      if (!(bestD <= radius))
+        throw error("radius", "point " + std::to_string(p) + " of '" + output_.name() + "' is " + formatNumber(bestD) +
+                                  " from the nearest node of '" + input_->name() + "' (radius " + formatNumber(radius) +
+                                  "): a subset's points must be nodes of the input; give `indices`, or map it with "
+                                  "BarycentricMapping");
+      index_[p] = best;
+    }
+  }
+
+  void apply(State& s) const override {
+    write(s, [this](const Eigen::Matrix3Xd& in, Eigen::Matrix3Xd& out) {
+      for (size_t p = 0; p < index_.size(); ++p) out.col(p) = in.col(index_[p]);
+    });
+  }
+  bool pointWeights(int p, std::vector<std::pair<int, double>>& out) const override {
+    if (p < 0 || p >= static_cast<int>(index_.size())) return false;
+    out.assign(1, {index_[p], 1.0});
+    return true;
+  }
+
+ private:
+  std::vector<int> index_;
+};
+
 // The attributes every mapping declares (SOFA's BaseMapping and Mapping data).
 void addMappingAttributes(ComponentSpec& s) {
   s.add(AttrSpec::string("template").def("Vec3d,Vec3d").help(
@@ -357,6 +409,20 @@ void registerMappings(Registry& r) {
             "every step. The counts must match.";
     addMappingAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<IdentityMapping>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "SubsetMapping";
+    s.category = "mapping";
+    s.doc = "Moves a visual surface or a mapped MechanicalObject whose points are some of a body's nodes (SOFA's "
+            "SubsetMapping): point i follows node indices[i]; without indices each point follows the node at its place "
+            "at init (within radius).";
+    addMappingAttributes(s);
+    s.add(AttrSpec::ints("indices").atLeast(0).linked().help("the input node of each output point"));
+    s.add(AttrSpec::real("radius").def("1e-5").atLeast(0).unit(Dimension::length()).help(
+        "without indices: how far a point may be from the node it is paired with"));
+    s.factory = [](BuildContext& c) { return std::make_unique<SubsetMapping>(c); };
     r.add(std::move(s));
   }
 }

@@ -143,6 +143,22 @@ const Topology* hexahedraAbove(Scene& scene, const Node& from) {
   return topologyAbove(scene, from, [](const Topology& t) { return !t.hexahedra().empty(); });
 }
 
+const Topology* volumeAbove(Scene& scene, const Node& from) {
+  for (const Node* n = &from; n; n = n->parent()) {
+    const Topology* grid = nullptr;
+    const auto& comps = n->components();
+    for (auto it = comps.rbegin(); it != comps.rend(); ++it) {
+      auto* t = dynamic_cast<Topology*>(it->get());
+      if (!t) continue;
+      scene.initComponent(**it);
+      if (t->tetrahedra().cols() > 0) return t;
+      if (!grid && !t->hexahedra().empty()) grid = t;
+    }
+    if (grid) return grid;
+  }
+  return nullptr;
+}
+
 void checkVec3Template(const Component& c) {
   const std::string& t = c.attrs().str("template");
   std::vector<std::string> parts;
@@ -183,7 +199,6 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));
   s.add(AttrSpec::string("texturename").help(drawingOnly));
-  for (const char* gl : {"blendEquation", "sfactor", "dfactor", "primitiveType"}) s.add(AttrSpec::string(gl).help(drawingOnly));
   s.add(AttrSpec::reals("normals").help(drawingOnly));
   for (const char* flag : {"useNormals", "updateNormals", "computeTangents", "handleDynamicTopology"})
     s.add(AttrSpec::boolean(flag).help(drawingOnly));

@@ -60,6 +60,9 @@ class VisualModel : public Component, public Stateful {
 const TetList* tetrahedraAbove(Scene& scene, const Node& from);
 // The nearest topology in `from` or above that has hexahedra (a grid), or nullptr.
 const Topology* hexahedraAbove(Scene& scene, const Node& from);
+// The nearest topology in `from` or above with tetrahedra or hexahedra (in one node, tetrahedra
+// first), or nullptr: what a body's elements are, seen from a node under it.
+const Topology* volumeAbove(Scene& scene, const Node& from);
 
 // Checks a `template` attribute of a visual model or mapping: one or two (input,output) vector
 // types of three coordinates (Vec3d, Vec3f, Vec3, ExtVec3f, ExtVec3d); SOFA's float variants run in

@@ -70,8 +70,28 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     b.v = v;
     b.w = w;
   } else {
-    b.v += h * (F - rM * m * b.v) / (damp * m);
-    b.w += (damp * I).ldlt().solve(h * (T - b.w.cross(Iw) - rM * Iw));
+    // [(1 + h rM) M - h^2 K] dV = h (F - rM M V + h K V), V = (v, w): the forces on the mapped
+    // points (contacts above all) are implicit in the body's own motion.
+    Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
+    for (const RigidMapping* map : mappings_) map->addStiffness(s, K);
+    Eigen::Matrix<double, 6, 6> M = Eigen::Matrix<double, 6, 6>::Zero();
+    M.topLeftCorner<3, 3>() = m * Eigen::Matrix3d::Identity();
+    M.bottomRightCorner<3, 3>() = I;
+    Eigen::Matrix<double, 6, 1> V, rhs;
+    V << b.v, b.w;
+    rhs << F, T - b.w.cross(Iw);
+    rhs = h * (rhs - rM * M * V + h * K * V);
+    Eigen::Matrix<double, 6, 6> A = damp * M - h * h * K;
+    for (int k = 0; k < 6; ++k)
+      if (body_->held[k]) {
+        A.row(k).setZero();
+        A.col(k).setZero();
+        A(k, k) = 1;
+        rhs[k] = 0;
+      }
+    const Eigen::Matrix<double, 6, 1> dV = A.partialPivLu().solve(rhs);
+    b.v += dV.head<3>();
+    b.w += dV.tail<3>();
   }
   for (int k = 0; k < 3; ++k) {
     if (body_->held[k]) b.v[k] = 0;
@@ -89,6 +109,9 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     d.object = body_->name();
     return d;
   }
+  // The points on the body where it now is: a body whose contacts follow this one's (solved
+  // later in the step) reads this body's surface at the end of its step.
+  for (const RigidMapping* map : mappings_) map->apply(s);
   return std::nullopt;
 }
 

@@ -2,10 +2,12 @@
 // UniformMass and an ODE solver in its node, and no driver. Newton-Euler in the world frame:
 //   (1 + h rM) m dv = h (F - rM m v)
 //   (1 + h rM) I dw = h (T - w x I w - rM I w),   I = R I_body R^T,
-// the linearly implicit Euler step of SOFA's EulerImplicitSolver for a body without stiffness (and
-// symplectic Euler with rM = 0); then held components are zeroed, p += h v and the orientation
-// turns by exp(h w). F and T are gravity and the forces on the body's mapped states (RigidMapping),
-// taken at the step start; the gyroscopic term w x I w is explicit. A prescribed velocity
+// the linearly implicit Euler step of SOFA's EulerImplicitSolver (symplectic Euler with rM = 0
+// and no stiffness); then held components are zeroed, p += h v and the orientation turns by
+// exp(h w). F and T are gravity and the forces on the body's mapped states (RigidMapping: contacts,
+// springs, constant forces) at the step start; their stiffness K, carried to the body's six
+// motions, makes them implicit: the matrix is (1 + h rM) M - h^2 K and the right side gains h^2 K V.
+// The gyroscopic term w x I w is explicit. A prescribed velocity
 // (LinearVelocityProjectiveConstraint) replaces the dynamics while it applies.
 // SOFA's rigid mass keeps the inertia in the world frame, unturned, and has no gyroscopic term:
 // the two agree for the default inertia (the mass times the identity).

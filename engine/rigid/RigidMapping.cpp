@@ -68,7 +68,13 @@ void RigidMapping::init() {
     state_->setMappedBy(*this, true);
     start = &state_->xInit;
     for (const auto& c : state_->node().components())
-      if (auto* f = dynamic_cast<ForceField*>(c.get()); f && !f->actsThroughMapping()) {
+      if (auto* f = dynamic_cast<ForceField*>(c.get())) {
+        // A collision surface initialises this mapping first (it reads the mapped state): it is
+        // taken as it is, and its contact forces are added where they act on this state.
+        if (f->actsThroughMapping()) {
+          surfaces_.push_back(f);
+          continue;
+        }
         scene().initComponent(*c);
         if (&f->mstate() == state_) forces_.push_back(f);
       }
@@ -98,14 +104,37 @@ void RigidMapping::apply(State& s) const {
 }
 
 void RigidMapping::addWrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const {
-  if (forces_.empty()) return;
+  if (forces_.empty() && surfaces_.empty()) return;
   MechanicalObject::Live& m = state_->live(s);
   m.f.setZero(3, m.x.cols());
   for (ForceField* f : forces_) f->addForce(s, m.x, m.v, m.f);
+  for (ForceField* f : surfaces_)
+    if (&f->mstate() == state_) f->addForce(s, m.x, m.v, m.f);
   const Eigen::Vector3d p = body_->live(s).p;
   for (Eigen::Index i = 0; i < m.f.cols(); ++i) {
     force += m.f.col(i);
     torque += (m.x.col(i) - p).cross(m.f.col(i));
+  }
+}
+
+void RigidMapping::addStiffness(const State& s, Eigen::Matrix<double, 6, 6>& K) const {
+  if (forces_.empty() && surfaces_.empty()) return;
+  const Eigen::Matrix3Xd& x = state_->x(s);
+  const Eigen::Vector3d p = body_->live(s).p;
+  const Eigen::Index n = x.cols();
+  Eigen::Matrix3Xd dx(3, n), df(3, n);
+  for (int k = 0; k < 6; ++k) {
+    // The points' motion under a unit translation or rotation of the body: dp + dtheta x r.
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k % 3);
+    for (Eigen::Index i = 0; i < n; ++i) dx.col(i) = k < 3 ? e : Eigen::Vector3d(e.cross(x.col(i) - p));
+    df.setZero();
+    for (ForceField* f : forces_) f->addDForce(s, dx, df, 1.0);
+    for (ForceField* f : surfaces_)
+      if (&f->mstate() == state_) f->addDForce(s, dx, df, 1.0);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      K.block<3, 1>(0, k) += df.col(i);
+      K.block<3, 1>(3, k) += (x.col(i) - p).cross(df.col(i));
+    }
   }
 }
 

@@ -27,9 +27,12 @@ class RigidMapping : public Component, public Mapping {
   // The mapped state (null when the output is a visual model) and the force fields acting on it.
   MechanicalObject* outputState() const { return state_; }
   const std::vector<ForceField*>& outputForces() const { return forces_; }
-  // The wrench of the output's force fields at state s (world frame, torque about the body's
-  // origin); adds nothing without force fields.
+  // The wrench of the output's force fields and contacts at state s (world frame, torque about
+  // the body's origin), taken explicitly over the step.
   void addWrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const;
+  // K += J^T K_points J: the stiffness of those forces (as linearised by the last addWrench) in the
+  // body's translation and rotation, J taking (dp, dtheta) to the points' dp + dtheta x r.
+  void addStiffness(const State& s, Eigen::Matrix<double, 6, 6>& K) const;
 
  private:
   RigidObject* body_ = nullptr;
@@ -37,6 +40,7 @@ class RigidMapping : public Component, public Mapping {
   VisualModel* visual_ = nullptr;
   Eigen::Matrix3Xd local_;  // the points in the body's frame
   std::vector<ForceField*> forces_;
+  std::vector<ForceField*> surfaces_;  // collision surfaces on the mapped state (contact forces)
 };
 
 void registerRigidMapping(Registry& r);

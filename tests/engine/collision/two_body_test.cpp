@@ -1,0 +1,120 @@
+// Penalty contact between the surfaces of two bodies: a rigid cube resting on a fixed plate comes
+// to rest where its four bottom corners carry its weight, each with SOFA's stiffness
+// k1 k2 / contactDistance; a deformable cube does the same on its own nodes. The constraint
+// response, which handles instruments' spheres only, stops the step instead.
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+
+#include "builtin/Builtins.h"
+#include "core/Scene.h"
+#include "engine/Simulation.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
+#include "io/scene/SceneReader.h"
+
+using namespace viscera;
+
+namespace {
+
+// A plate (two triangles at z = 0, fixed: no solver) under a pipeline with the given response.
+std::string world(const std::string& response, const std::string& body) {
+  return R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <CollisionPipeline/>
+  <MinProximityIntersection alarmDistance="0.05" contactDistance="0.01"/>
+  <CollisionResponse response=")" + response + R"("/>
+  <Node name="plate">
+    <MeshTopology position="-2 -2 0  2 -2 0  2 2 0  -2 2 0" triangles="0 1 2  0 2 3"/>
+    <MechanicalObject/>
+    <TriangleCollisionModel simulated="0" moving="0"/>
+  </Node>
+)" + body + "</Node>";
+}
+
+// A unit cube's surface, outward triangles, its lowest face at z = z0.
+std::string cubeSurface(double z0) {
+  std::string p;
+  for (int k = 0; k < 8; ++k)
+    p += std::to_string(k & 1 ? 0.5 : -0.5) + " " + std::to_string(k & 2 ? 0.5 : -0.5) + " " +
+         std::to_string(z0 + (k & 4 ? 1.0 : 0.0)) + "  ";
+  return R"(<MeshTopology position=")" + p + R"(" triangles="0 2 1  1 2 3  4 5 6  5 7 6  0 1 4  1 5 4  2 6 3  3 6 7  0 4 2  2 4 6  1 3 5  3 7 5"/>)";
+}
+
+}  // namespace
+
+TEST(TwoBodyContact, ARigidCubeRestsWhereItsCornersCarryItsWeight) {
+  // Frame at the cube's centre (z = 0.52), the surface given in the body's frame.
+  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", R"(
+  <Node name="cube">
+    <EulerImplicitSolver rayleighMass="8"/>
+    <CGLinearSolver iterations="10"/>
+    <MechanicalObject template="Rigid3d" position="0 0 0.52 0 0 0 1"/>
+    <UniformMass totalMass="1"/>
+    <Node name="surface">
+      )" + cubeSurface(-0.5) + R"(
+      <MechanicalObject/>
+      <TriangleCollisionModel/>
+      <RigidMapping/>
+    </Node>
+  </Node>
+)"), "two_body.xml"));
+  Simulation sim(*scene);
+  for (int i = 0; i < 1500; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
+  const RigidObject::Live& b = scene->all<RigidObject>().front()->live(sim.state());
+  // Four corners, k = 10 x 10 / 0.01 each: the bottom sinks m g / (4 k) into the contact distance.
+  const double k = 10.0 * 10.0 / 0.01, sink = 1.0 * 10.0 / (4 * k);
+  EXPECT_NEAR(b.p.z() - 0.5, 0.01 - sink, 1e-6);
+  EXPECT_NEAR(b.v.norm(), 0, 1e-6);
+  EXPECT_NEAR(b.w.norm(), 0, 1e-6);
+}
+
+TEST(TwoBodyContact, ADeformableCubeRestsOnItsNodes) {
+  // The cube's 8 nodes as a deformable body held together by springs (a MeshSpringForceField on
+  // its hexahedron); its weight is shared by the 4 bottom nodes.
+  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", R"(
+  <Node name="cube">
+    <EulerImplicitSolver rayleighMass="8"/>
+    <CGLinearSolver iterations="50" tolerance="1e-12" threshold="1e-20"/>
+    <RegularGridTopology name="grid" n="2 2 2" min="-0.5 -0.5 0.02" max="0.5 0.5 1.02"/>
+    <MechanicalObject name="dofs"/>
+    <UniformMass totalMass="2"/>
+    <MeshSpringForceField stiffness="1e5"/>
+    <TriangleCollisionModel/>
+  </Node>
+)"), "two_body.xml"));
+  Simulation sim(*scene);
+  for (int i = 0; i < 1500; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
+  MechanicalObject* cube = nullptr;
+  for (MechanicalObject* m : scene->all<MechanicalObject>())
+    if (m->name() == "dofs") cube = m;
+  ASSERT_TRUE(cube);
+  const Eigen::Matrix3Xd& x = cube->x(sim.state());
+  // Each bottom node carries m g / 4 = 5 with k = 1e4: it sits 5e-4 inside the contact distance.
+  for (int i = 0; i < 8; ++i)
+    if (x(2, i) < 0.5) EXPECT_NEAR(x(2, i), 0.01 - 2.0 * 10.0 / (4 * 1e4), 2e-6) << "node " << i;
+}
+
+TEST(TwoBodyContact, TheConstraintResponseStopsTheStepNamingBoth) {
+  auto scene = buildScene(io::parseSceneText(world("FrictionContactConstraint", R"(
+  <FreeMotionAnimationLoop/>
+  <GenericConstraintSolver/>
+  <Node name="cube">
+    <EulerImplicitSolver/>
+    <CGLinearSolver iterations="10"/>
+    <MechanicalObject template="Rigid3d" position="0 0 0.52 0 0 0 1"/>
+    <UniformMass totalMass="1"/>
+    <Node name="surface">
+      )" + cubeSurface(-0.5) + R"(
+      <MechanicalObject/>
+      <TriangleCollisionModel/>
+      <RigidMapping/>
+    </Node>
+  </Node>
+)"), "two_body.xml"));
+  Simulation sim(*scene);
+  const auto bad = sim.step();
+  ASSERT_TRUE(bad.has_value());
+  EXPECT_NE(bad->reason.find("/root/plate"), std::string::npos) << bad->reason;
+  EXPECT_NE(bad->reason.find("/root/cube/surface"), std::string::npos) << bad->reason;
+}
