@@ -61,6 +61,37 @@ void registerBuiltins(Registry& r) {
                         "AttachBodyButtonSetting", "MouseButtonSetting"})
     r.addIgnored(t, drawing);
   r.addIgnored("RequiredPlugin", "plugins are built in");
+  {
+    // SOFA's AddDataRepository: a folder where the scene's files are looked for first.
+    ComponentSpec s;
+    s.name = "AddDataRepository";
+    s.category = "scene";
+    s.doc = "Puts a folder first on the search path of the files the scene names (SOFA's data repository); a relative "
+            "path is taken from the scene's folder. The scene's own folder is still looked in before it.";
+    s.add(AttrSpec::string("path").req().help("the folder"));
+    s.factory = [](BuildContext& c) {
+      c.scene().addDataFolder(c.attrs().str("path"));
+      return std::make_unique<Component>(c);
+    };
+    r.add(std::move(s));
+  }
+  {
+    // SOFA's Gravity component: the scene's gravity, from the root node.
+    ComponentSpec s;
+    s.name = "Gravity";
+    s.category = "scene";
+    s.doc = "The scene's gravity (SOFA's Gravity component), replacing the root node's `gravity`. In the root node only: "
+            "gravity is one for the whole scene here, as a sub-node's `gravity` attribute is.";
+    s.add(AttrSpec::reals("gravity", 3).req().unit(Dimension::acceleration()).help("gravity vector"));
+    s.factory = [](BuildContext& c) {
+      if (c.node().parent())
+        throw Error(c.attrs().get("gravity").loc, "Gravity.gravity: gravity is set for the whole scene, in the root node");
+      const auto& g = c.attrs().reals("gravity");
+      c.scene().setGravity(Eigen::Vector3d(g[0], g[1], g[2]));
+      return std::make_unique<Component>(c);
+    };
+    r.add(std::move(s));
+  }
   r.addIgnored("DefaultAnimationLoop", "the step loop is built in");
   r.addIgnored("TetrahedronSetTopologyModifier", "topology changes are not needed");
   r.addIgnored("TetrahedronSetGeometryAlgorithms", "geometry helpers are built in");

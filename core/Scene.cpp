@@ -273,6 +273,12 @@ std::string Scene::resolvePath(const std::string& p) const {
   return resolveDataPath(p, dir_, searchPath_);
 }
 
+void Scene::addDataFolder(const std::string& folder) {
+  namespace fs = std::filesystem;
+  const fs::path f(folder);
+  searchPath_.insert(searchPath_.begin(), f.is_absolute() || dir_.empty() ? f.string() : (fs::path(dir_) / f).lexically_normal().string());
+}
+
 std::string resolveDataPath(const std::string& p, const std::string& dir, const std::vector<std::string>& searchPath) {
   namespace fs = std::filesystem;
   const fs::path path(p);

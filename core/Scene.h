@@ -33,6 +33,10 @@ class Scene {
   // first folder of the data search path that has it (SOFA's lookup). A file found nowhere
   // resolves against the scene's folder, so that the message names where it was expected.
   std::string resolvePath(const std::string& p) const;
+  // Puts a folder (relative to the scene's) first on the data search path (SOFA's AddDataRepository).
+  void addDataFolder(const std::string& folder);
+  // Replaces the root's gravity (SOFA's Gravity component in the root node), in scene units.
+  void setGravity(const Eigen::Vector3d& g) { gravity_ = g; }
   const std::vector<std::string>& searchPath() const { return searchPath_; }
   // Where exporters write (`--out`); relative output names resolve against it. Defaults to the
   // scene's folder.

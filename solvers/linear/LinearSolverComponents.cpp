@@ -1,5 +1,6 @@
 // Scene components for the linear solvers: CGLinearSolver, PCGLinearSolver with its preconditioners,
 // and SparseLDLSolver.
+#include <Eigen/SVD>
 #include <memory>
 
 #include "core/Component.h"
@@ -85,6 +86,42 @@ class SparseLDLSolver : public Component, public LinearSolver {
     }
     return info;
   }
+};
+
+// SOFA's SVDLinearSolver: the dense singular value decomposition of the step's matrix, with the
+// singular values below minSingularValue (relative to the largest) taken as zero: the
+// least-squares solution of minimal norm, defined for singular systems too. Dense: for small ones.
+class SVDLinearSolver : public Component, public LinearSolver {
+ public:
+  using Component::Component;
+  bool needsMatrix() const override { return true; }
+  void init() override {
+    threshold_ = attrs_.real("minSingularValue");
+    if (!(threshold_ >= 0)) throw error("minSingularValue", "must not be negative");
+  }
+  LinearSolveInfo solve(State&, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
+    LinearSolveInfo info;
+    if (!p.matrix) {
+      info.ok = false;
+      info.message = typeName() + " needs an assembled matrix";
+      return info;
+    }
+    Eigen::BDCSVD<Eigen::MatrixXd> svd(p.matrix->toDense(), Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Eigen::VectorXd& sigma = svd.singularValues();
+    const double cut = sigma.size() ? threshold_ * sigma[0] : 0.0;
+    Eigen::VectorXd c = svd.matrixU().transpose() * b;
+    for (Eigen::Index i = 0; i < c.size(); ++i) c[i] = sigma[i] > cut ? c[i] / sigma[i] : 0.0;
+    x = svd.matrixV() * c;
+    info.iterations = 1;
+    if (!x.allFinite()) {
+      info.ok = false;
+      info.message = "SVDLinearSolver produced non-finite values";
+    }
+    return info;
+  }
+
+ private:
+  double threshold_ = 1e-6;
 };
 
 // A preconditioner for PCGLinearSolver, built from the assembled matrix.
@@ -250,6 +287,19 @@ void registerLinearSolvers(Registry& r) {
             "positive definite system and map to it.";
     s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseLDLSolver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "SVDLinearSolver";
+    s.category = "solver";
+    s.doc = "Dense singular value decomposition of the step's assembled matrix (SOFA's SVDLinearSolver): singular values "
+            "below minSingularValue times the largest count as zero, so a singular system gets its minimal-norm "
+            "least-squares solution. Dense, so for small systems (a few thousand unknowns at most).";
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.add(AttrSpec::real("minSingularValue").def("1e-6").help("relative singular value below which a direction is dropped"));
+    s.add(AttrSpec::boolean("verbose").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<SVDLinearSolver>(c); };
     r.add(std::move(s));
   }
   {

@@ -578,3 +578,29 @@ TEST(SofaSceneForms, SurfacesOfTwoBodiesCollideUnderThePenaltyResponse) {
   // No node of the left block passed the right block's near face (less the contact distance).
   EXPECT_LT(left.x(sim.state()).row(0).maxCoeff(), right.x(sim.state()).row(0).minCoeff());
 }
+
+// SOFA's AddDataRepository puts a folder (from the scene's) on the search path of its files, and
+// its Gravity component in the root node sets the scene's gravity.
+TEST(SofaSceneForms, AddDataRepositoryAndGravity) {
+  TempDir dir;
+  write(dir / "meshes/tet.vtk", kTetMesh);
+  write(dir / "scene.scn", R"(<Node name="root" gravity="0 -9.81 0">
+  <AddDataRepository path="meshes"/>
+  <Gravity gravity="0 0 -3"/>
+  <Node name="body"><MeshVTKLoader name="loader" filename="tet.vtk"/><MechanicalObject name="dofs" src="@loader"/></Node>
+</Node>)");
+  auto scene = buildScene(io::readScene(dir / "scene.scn"));
+  scene->init();
+  EXPECT_EQ(object(*scene, "dofs").size(), 4);
+  EXPECT_EQ(scene->gravity(), Eigen::Vector3d(0, 0, -3));
+  // Gravity is one for the whole scene: a sub-node's Gravity is refused.
+  write(dir / "sub.scn", R"(<Node name="root"><Node name="n"><Gravity gravity="0 0 -3"/></Node></Node>)");
+  std::string why;
+  try {
+    buildScene(io::readScene(dir / "sub.scn"));
+  } catch (const Error& e) {
+    why = e.what();
+  }
+  EXPECT_NE(why.find("sub.scn:1"), std::string::npos) << why;
+  EXPECT_NE(why.find("root node"), std::string::npos) << why;
+}
