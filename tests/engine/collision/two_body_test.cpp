@@ -41,11 +41,9 @@ std::string cubeSurface(double z0) {
   return R"(<MeshTopology position=")" + p + R"(" triangles="0 2 1  1 2 3  4 5 6  5 7 6  0 1 4  1 5 4  2 6 3  3 6 7  0 4 2  2 4 6  1 3 5  3 7 5"/>)";
 }
 
-}  // namespace
-
-TEST(TwoBodyContact, ARigidCubeRestsWhereItsCornersCarryItsWeight) {
-  // Frame at the cube's centre (z = 0.52), the surface given in the body's frame.
-  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", R"(
+// A rigid unit cube of mass 1, its frame at its centre (z = 0.52), its surface in the body's frame.
+std::string rigidCube() {
+  return R"(
   <Node name="cube">
     <EulerImplicitSolver rayleighMass="8"/>
     <CGLinearSolver iterations="10"/>
@@ -58,7 +56,13 @@ TEST(TwoBodyContact, ARigidCubeRestsWhereItsCornersCarryItsWeight) {
       <RigidMapping/>
     </Node>
   </Node>
-)"), "two_body.xml"));
+)";
+}
+
+}  // namespace
+
+TEST(TwoBodyContact, ARigidCubeRestsWhereItsCornersCarryItsWeight) {
+  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", rigidCube()), "two_body.xml"));
   Simulation sim(*scene);
   for (int i = 0; i < 1500; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
   const RigidObject::Live& b = scene->all<RigidObject>().front()->live(sim.state());
@@ -96,22 +100,8 @@ TEST(TwoBodyContact, ADeformableCubeRestsOnItsNodes) {
 }
 
 TEST(TwoBodyContact, TheConstraintResponseStopsTheStepNamingBoth) {
-  auto scene = buildScene(io::parseSceneText(world("FrictionContactConstraint", R"(
-  <FreeMotionAnimationLoop/>
-  <GenericConstraintSolver/>
-  <Node name="cube">
-    <EulerImplicitSolver/>
-    <CGLinearSolver iterations="10"/>
-    <MechanicalObject template="Rigid3d" position="0 0 0.52 0 0 0 1"/>
-    <UniformMass totalMass="1"/>
-    <Node name="surface">
-      )" + cubeSurface(-0.5) + R"(
-      <MechanicalObject/>
-      <TriangleCollisionModel/>
-      <RigidMapping/>
-    </Node>
-  </Node>
-)"), "two_body.xml"));
+  auto scene = buildScene(io::parseSceneText(
+      world("FrictionContactConstraint", "<FreeMotionAnimationLoop/><GenericConstraintSolver/>" + rigidCube()), "two_body.xml"));
   Simulation sim(*scene);
   const auto bad = sim.step();
   ASSERT_TRUE(bad.has_value());
