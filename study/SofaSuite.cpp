@@ -347,7 +347,7 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
     };
     for (auto* c : scene->all<Component>()) {
       const auto* mo = dynamic_cast<MechanicalObject*>(c);
-      if ((mo && (entry.mapped || (!mo->mappedBy() && integrated(*c)))) || dynamic_cast<RigidObject*>(c)) ours.push_back(c);
+      if ((mo && integrated(*c) && (entry.mapped || !mo->mappedBy())) || dynamic_cast<RigidObject*>(c)) ours.push_back(c);
     }
     auto taken = [&](const Component* c) { return std::find(objects.begin(), objects.end(), c) != objects.end(); };
     for (const auto& d : dumps) {
