@@ -286,10 +286,15 @@ void registerHexahedronFEM(Registry& r) {
   {
     ComponentSpec s;
     s.name = "HexahedronFEMForceField";
+    // SOFA's HexahedralFEMForceField: the same corotational hexahedra (frames from the mean edges or
+    // their polar decomposition); its stiffness is a closed form exact for box-shaped cells only.
+    s.aliases = {"HexahedralFEMForceField"};
     s.category = "forcefield";
     s.doc = "Linear elastic trilinear hexahedra, as SOFA's (stiffness by 2 x 2 x 2 Gauss points). method=small: linear; "
             "large: corotational with the element frame from its mean edges (SOFA's default); polar: corotational with "
-            "the polar decomposition of the mean edges. The implicit solve uses R K0 R^T as SOFA does.";
+            "the polar decomposition of the mean edges. The implicit solve uses R K0 R^T as SOFA does. SOFA's "
+            "HexahedralFEMForceField is the same element with a closed-form stiffness that is exact for box-shaped "
+            "cells (a regular grid) only; it maps here, exact on every cell.";
     addHexahedronFEMAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<HexahedronFEM>(c); };
     r.add(std::move(s));
@@ -297,6 +302,7 @@ void registerHexahedronFEM(Registry& r) {
   {
     ComponentSpec s;
     s.name = "HexahedronFEMForceFieldAndMass";
+    s.aliases = {"HexahedralFEMForceFieldAndMass"};
     s.category = "forcefield";
     s.doc = "HexahedronFEMForceField and the mass of the same hexahedra in one component, as SOFA's: the consistent mass "
             "matrix of trilinear elements (density times the integral of N_i N_j, 2 x 2 x 2 Gauss points, exact on "

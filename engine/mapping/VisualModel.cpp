@@ -7,6 +7,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/GridSplit.h"
 #include "engine/topology/SurfaceFile.h"
 #include "io/scene/InputCache.h"
 #include "io/surface/SurfaceMesh.h"
@@ -89,17 +90,35 @@ void VisualModel::fromAttributes() {
 }
 
 void VisualModel::fromContextBoundary() {
-  // As SOFA's OglModel without a file: the surface of the body above. All of its nodes are kept
-  // (the interior ones belong to no triangle) so that vertex i is node i.
+  // As SOFA's OglModel without a file: the surface of the topology above, the nearest one with
+  // triangles (a container a topological mapping filled), tetrahedra or hexahedra (their
+  // boundary). All of the body's nodes are kept (the interior ones belong to no triangle) so that
+  // vertex i is node i.
   MechanicalObject& state = contextState(*this);
-  const TetList* tets = tetrahedraAbove(scene(), node());
-  if (!tets)
-    throw error("has no `filename`, `src` or `position`, and no tetrahedra in its node or above give a boundary surface");
-  if (tets->maxCoeff() >= state.size())
-    throw error("the tetrahedra above refer to node " + std::to_string(tets->maxCoeff()) + ", but MechanicalObject '" +
-                state.name() + "' has " + std::to_string(state.size()) + " nodes");
   x0 = state.x0;
-  triangles = boundaryTriangles(*tets, x0);
+  for (const Node* n = &node(); n && triangles.cols() == 0; n = n->parent()) {
+    const auto& comps = n->components();
+    for (auto it = comps.rbegin(); it != comps.rend() && triangles.cols() == 0; ++it) {
+      const auto* topo = dynamic_cast<const Topology*>(it->get());
+      if (!topo || it->get() == this) continue;
+      scene().initComponent(**it);
+      FieldValue tris;
+      if (topo->tetrahedra().cols() > 0) {
+        triangles = boundaryTriangles(topo->tetrahedra(), x0);
+      } else if (!topo->hexahedra().empty()) {
+        triangles = hexahedronBoundaryTriangles(topo->hexahedra(), x0);
+      } else if ((*it)->field("triangles", tris) && !tris.values.empty()) {
+        triangles.resize(3, static_cast<Eigen::Index>(tris.values.size() / 3));
+        for (Eigen::Index i = 0; i < triangles.size(); ++i) triangles.data()[i] = static_cast<int>(tris.values[i]);
+      }
+    }
+  }
+  if (triangles.cols() == 0)
+    throw error("has no `filename`, `src` or `position`, and no topology in its node or above gives a surface "
+                "(triangles, or the boundary of tetrahedra or hexahedra)");
+  if (triangles.maxCoeff() >= state.size() || triangles.minCoeff() < 0)
+    throw error("the surface above refers to node " + std::to_string(triangles.maxCoeff()) + ", but MechanicalObject '" +
+                state.name() + "' has " + std::to_string(state.size()) + " nodes");
 }
 
 bool VisualModel::field(const std::string& name, FieldValue& out) const {

@@ -251,6 +251,32 @@ class Hexa2QuadTopologicalMapping : public TopologicalMapping {
   }
 };
 
+// Writes the quads of a QuadSetTopologyContainer as two triangles each, (a b c) and (a c d), into a
+// TriangleSetTopologyContainer (SOFA's split).
+class Quad2TriangleTopologicalMapping : public TopologicalMapping {
+ public:
+  using TopologicalMapping::TopologicalMapping;
+  void init() override {
+    auto* in = dynamic_cast<QuadSetTopologyContainer*>(linkedComponent("input"));
+    if (!in) throw error("input", "does not link to a QuadSetTopologyContainer");
+    auto* out = dynamic_cast<TriangleSetTopologyContainer*>(&output());
+    if (!out) throw error("output", "does not link to a TriangleSetTopologyContainer");
+    FieldValue q;
+    in->field("quads", q);
+    io::TriangleList tris(3, static_cast<Eigen::Index>(q.values.size() / 4 * 2));
+    for (Eigen::Index k = 0; 4 * k + 3 < static_cast<Eigen::Index>(q.values.size()); ++k) {
+      const auto v = [&](int i) { return static_cast<int>(q.values[4 * k + i]); };
+      tris.col(2 * k) << v(0), v(1), v(2);
+      tris.col(2 * k + 1) << v(0), v(2), v(3);
+    }
+    const Eigen::Matrix3Xd points = in->points().cols() > 0 ? in->points() : contextState(*this).x0;
+    if (tris.size() && tris.maxCoeff() >= points.cols())
+      throw error("input", "has quads that refer to node " + std::to_string(tris.maxCoeff()) + ", but there are " +
+                               std::to_string(points.cols()) + " points");
+    out->fill(points, tris);
+  }
+};
+
 class Hexa2TetraTopologicalMapping : public TopologicalMapping {
  public:
   using TopologicalMapping::TopologicalMapping;
@@ -282,20 +308,31 @@ class MeshLoader : public Component, public Topology {
       throw error("filename", e.what());
     }
     applyPlacement(attrs_, mesh_.points);
-    if (attrs_.boolean("flipNormals")) mesh_.triangles.row(1).swap(mesh_.triangles.row(2));
+    if (attrs_.boolean("flipNormals")) {
+      mesh_.triangles.row(1).swap(mesh_.triangles.row(2));
+      mesh_.quads.row(1).swap(mesh_.quads.row(3));
+    }
+    hexa_.resize(mesh_.hexahedra.cols());
+    for (Eigen::Index e = 0; e < mesh_.hexahedra.cols(); ++e)
+      for (int k = 0; k < 8; ++k) hexa_[e][k] = mesh_.hexahedra(k, e);
   }
   const Eigen::Matrix3Xd& points() const override { return mesh_.points; }
   const TetList& tetrahedra() const override { return mesh_.tets; }
+  const HexList& hexahedra() const override { return hexa_; }
   bool field(const std::string& name, FieldValue& out) const override {
-    if (name == "position") out.values.assign(mesh_.points.data(), mesh_.points.data() + mesh_.points.size());
-    else if (name == "tetrahedra") out.values.assign(mesh_.tets.data(), mesh_.tets.data() + mesh_.tets.size());
-    else if (name == "triangles") out.values.assign(mesh_.triangles.data(), mesh_.triangles.data() + mesh_.triangles.size());
+    auto put = [&](const auto& m) { out.values.assign(m.data(), m.data() + m.size()); };
+    if (name == "position") put(mesh_.points);
+    else if (name == "tetrahedra") put(mesh_.tets);
+    else if (name == "triangles") put(mesh_.triangles);
+    else if (name == "hexahedra") put(mesh_.hexahedra);
+    else if (name == "quads") put(mesh_.quads);
     else return false;
     return true;
   }
 
  private:
   io::VolumeMesh mesh_;
+  HexList hexa_;
 };
 
 class SurfaceLoader : public Component, public Topology {
@@ -674,6 +711,17 @@ void registerTopologies(Registry& r) {
   }
   {
     ComponentSpec s;
+    s.name = "Quad2TriangleTopologicalMapping";
+    s.category = "topology";
+    s.doc = "Writes each quad of the QuadSetTopologyContainer `input` as two triangles, (a b c) and (a c d), into the "
+            "TriangleSetTopologyContainer `output`, with the same points (SOFA's split).";
+    s.add(AttrSpec::link("input").req().help("the QuadSetTopologyContainer"));
+    s.add(AttrSpec::link("output").req().help("the TriangleSetTopologyContainer to fill"));
+    s.factory = [](BuildContext& c) { return std::make_unique<Quad2TriangleTopologicalMapping>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
     s.name = "Tetra2TriangleTopologicalMapping";
     s.category = "topology";
     s.doc = "Writes the boundary triangles of `input`'s tetrahedra (outward) into the TriangleSetTopologyContainer "
@@ -703,7 +751,8 @@ void registerTopologies(Registry& r) {
     s.name = name;
     s.category = "loader";
     s.doc = std::string(name) == "MeshGmshLoader"
-                ? "Reads a Gmsh .msh mesh (legacy $NOD/$ELM, v2 and v4 ASCII); fields position, tetrahedra, triangles."
+                ? "Reads a Gmsh .msh mesh (legacy $NOD/$ELM, v2 and v4 ASCII); fields position, tetrahedra, hexahedra, "
+                  "triangles, quads."
                 : "Reads a VTK mesh (.vtk legacy ASCII, .vtu); fields position, tetrahedra, triangles.";
     addLoaderAttributes(s);
     s.factory = [](BuildContext& c) { return std::make_unique<MeshLoader>(c); };

@@ -38,10 +38,13 @@ const char* gmshTypeName(long long type) {
   }
 }
 
-// Node count of the types that are kept (tetrahedron, triangle) or skipped (point, line).
+// Node count of the types that are kept (tetrahedron, hexahedron, triangle, quadrangle) or
+// skipped (point, line).
 int knownNodeCount(long long type) {
   switch (type) {
+    case 5: return 8;
     case 4: return 4;
+    case 3: return 4;
     case 2: return 3;
     case 1: return 2;
     case 15: return 1;
@@ -49,7 +52,7 @@ int knownNodeCount(long long type) {
   }
 }
 
-bool isKept(long long type) { return type == 4 || type == 2; }
+bool isKept(long long type) { return type == 2 || type == 3 || type == 4 || type == 5; }
 
 std::string plural(long long n, const char* noun) { return std::to_string(n) + " " + noun + (n == 1 ? "" : "s"); }
 
@@ -91,8 +94,9 @@ class GmshReader {
   struct Element {
     long long tag;
     int line;
-    int count;  // 4: tetrahedron, 3: triangle
-    long long nodes[4];
+    long long type;  // Gmsh's: 2 triangle, 3 quadrangle, 4 tetrahedron, 5 hexahedron
+    int count;
+    long long nodes[8];
   };
 
   void beginSection(int& seenLine, const char* name) {
@@ -237,17 +241,16 @@ class GmshReader {
     const char* name = gmshTypeName(type);
     in_.fail("element " + std::to_string(tag) + " has Gmsh type " + std::to_string(type) +
              (name ? std::string(" (") + name + ")" : "") +
-             ", which is not supported: only 4-node tetrahedra (type 4) and 3-node triangles (type 2) are read; "
-             "points and lines are skipped");
+             ", which is not supported: 4-node tetrahedra (type 4), 8-node hexahedra (5), 3-node triangles (2) and "
+             "4-node quadrangles (3) are read; points and lines are skipped");
   }
 
   // Reads the element's node tags from tokens [first, first + nodes) and keeps it if wanted.
   void addElement(long long tag, long long type, size_t first) {
     const int n = knownNodeCount(type);
-    long long nodes[4] = {0, 0, 0, 0};
-    for (int k = 0; k < n; ++k) nodes[k] = in_.intAt(first + k, "a node tag");
+    Element e{tag, in_.line(), type, n, {}};
+    for (int k = 0; k < n; ++k) e.nodes[k] = in_.intAt(first + k, "a node tag");
     if (!isKept(type)) return;
-    Element e{tag, in_.line(), n, {nodes[0], nodes[1], nodes[2], nodes[3]}};
     elements_.push_back(e);
   }
 
@@ -356,7 +359,7 @@ class GmshReader {
     detail::MeshBuilder mesh;
     mesh.xyz = std::move(xyz_);
     for (const Element& e : elements_) {
-      auto& out = e.count == 4 ? mesh.tets : mesh.triangles;
+      auto& out = e.type == 4 ? mesh.tets : e.type == 5 ? mesh.hexahedra : e.type == 3 ? mesh.quads : mesh.triangles;
       for (int k = 0; k < e.count; ++k) {
         const int index = lookup(e.nodes[k]);
         if (index < 0)

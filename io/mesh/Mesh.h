@@ -13,6 +13,10 @@ struct VolumeMesh {
   Eigen::Matrix3Xd points;                         // 3 x #nodes
   Eigen::Matrix<int, 4, Eigen::Dynamic> tets;      // 4 x #tets, 0-based node indices
   Eigen::Matrix<int, 3, Eigen::Dynamic> triangles; // 3 x #triangles (surface elements in the file)
+  // Gmsh files only: 8-node hexahedra (nodes 0-3 one face counter-clockwise seen from outside
+  // the cell's other face 4-7, as Gmsh, VTK and SOFA order them) and 4-node quadrangles.
+  Eigen::Matrix<int, 8, Eigen::Dynamic> hexahedra;
+  Eigen::Matrix<int, 4, Eigen::Dynamic> quads;
 };
 
 // Reads a mesh by extension (.msh, .vtk, .vtu). Throws viscera::Error "file:line: what" for

@@ -159,6 +159,9 @@ VolumeMesh MeshBuilder::finish() const {
   mesh.tets = Eigen::Map<const Eigen::Matrix<int, 4, Eigen::Dynamic>>(tets.data(), 4, static_cast<Eigen::Index>(tets.size() / 4));
   mesh.triangles =
       Eigen::Map<const Eigen::Matrix<int, 3, Eigen::Dynamic>>(triangles.data(), 3, static_cast<Eigen::Index>(triangles.size() / 3));
+  mesh.hexahedra =
+      Eigen::Map<const Eigen::Matrix<int, 8, Eigen::Dynamic>>(hexahedra.data(), 8, static_cast<Eigen::Index>(hexahedra.size() / 8));
+  mesh.quads = Eigen::Map<const Eigen::Matrix<int, 4, Eigen::Dynamic>>(quads.data(), 4, static_cast<Eigen::Index>(quads.size() / 4));
   return mesh;
 }
 

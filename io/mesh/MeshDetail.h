@@ -87,6 +87,8 @@ struct MeshBuilder {
   std::vector<double> xyz;
   std::vector<int> tets;
   std::vector<int> triangles;
+  std::vector<int> hexahedra;
+  std::vector<int> quads;
 
   long long numPoints() const { return static_cast<long long>(xyz.size() / 3); }
   VolumeMesh finish() const;

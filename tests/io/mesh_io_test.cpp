@@ -294,3 +294,21 @@ TEST(MeshRead, PvdReadsBackWhatWasWrittenInTimeOrder) {
 }
 
 }  // namespace
+
+// Gmsh hexahedra (type 5) and quadrangles (type 3) are read, in every version, with the nodes in
+// the file's order (Gmsh, VTK and SOFA order a hexahedron's nodes alike).
+TEST(MeshRead, GmshHexahedraAndQuadrangles) {
+  TempFolder dir;
+  const std::string nodes = "1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0 0 1\n6 1 0 1\n7 1 1 1\n8 0 1 1\n";
+  spit(dir / "v2.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n8\n" + nodes + "$EndNodes\n"
+                       "$Elements\n2\n1 5 2 0 1 1 2 3 4 5 6 7 8\n2 3 2 0 1 1 2 3 4\n$EndElements\n");
+  spit(dir / "v1.msh", "$NOD\n8\n" + nodes + "$ENDNOD\n$ELM\n2\n1 5 1 1 8 1 2 3 4 5 6 7 8\n2 3 1 1 4 1 2 3 4\n$ENDELM\n");
+  for (const char* name : {"v2.msh", "v1.msh"}) {
+    const VolumeMesh m = viscera::io::readVolumeMesh((dir / name).string());
+    ASSERT_EQ(m.hexahedra.cols(), 1) << name;
+    for (int k = 0; k < 8; ++k) EXPECT_EQ(m.hexahedra(k, 0), k) << name;
+    ASSERT_EQ(m.quads.cols(), 1) << name;
+    EXPECT_EQ(m.quads.col(0), Eigen::Vector4i(0, 1, 2, 3)) << name;
+    EXPECT_EQ(m.tets.cols(), 0);
+  }
+}

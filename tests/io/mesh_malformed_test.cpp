@@ -94,14 +94,14 @@ TEST_F(MeshMalformed, GmshSecondOrderTetIsRejected) {
   EXPECT_CONTAINS(msg, "element 3 has Gmsh type 11 (10-node second-order tetrahedron), which is not supported");
 }
 
-TEST_F(MeshMalformed, GmshHexahedronIsRejectedInEveryVersion) {
-  std::string text = kV2Head + kV2Nodes + "$Elements\n1\n1 5 0 1 2 3 4 5 1 2 3\n$EndElements\n";
-  EXPECT_CONTAINS(errorReading("hex2.msh", text), at("hex2.msh", lineOf(text, "1 5 0")) + "element 1 has Gmsh type 5 (8-node hexahedron)");
-  text = "$NOD\n1\n1 0 0 0\n$ENDNOD\n$ELM\n1\n4 5 1 1 8 1 1 1 1 1 1 1 1\n$ENDELM\n";
-  EXPECT_CONTAINS(errorReading("hex1.msh", text), at("hex1.msh", lineOf(text, "4 5 1")) + "element 4 has Gmsh type 5");
+TEST_F(MeshMalformed, GmshPrismIsRejectedInEveryVersion) {
+  std::string text = kV2Head + kV2Nodes + "$Elements\n1\n1 6 0 1 2 3 4 5 1\n$EndElements\n";
+  EXPECT_CONTAINS(errorReading("prism2.msh", text), at("prism2.msh", lineOf(text, "1 6 0")) + "element 1 has Gmsh type 6 (6-node prism)");
+  text = "$NOD\n1\n1 0 0 0\n$ENDNOD\n$ELM\n1\n4 6 1 1 6 1 1 1 1 1 1\n$ENDELM\n";
+  EXPECT_CONTAINS(errorReading("prism1.msh", text), at("prism1.msh", lineOf(text, "4 6 1")) + "element 4 has Gmsh type 6");
   text = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 1 1 1\n3 1 0 1\n1\n0 0 0\n$EndNodes\n"
-         "$Elements\n1 1 6 6\n3 1 5 1\n6 1 1 1 1 1 1 1 1\n$EndElements\n";
-  EXPECT_CONTAINS(errorReading("hex4.msh", text), at("hex4.msh", lineOf(text, "6 1 1 1")) + "element 6 has Gmsh type 5");
+         "$Elements\n1 1 6 6\n3 1 6 1\n6 1 1 1 1 1 1\n$EndElements\n";
+  EXPECT_CONTAINS(errorReading("prism4.msh", text), at("prism4.msh", lineOf(text, "6 1 1 1")) + "element 6 has Gmsh type 6");
 }
 
 TEST_F(MeshMalformed, GmshWrongNodeCountOnAnElementLine) {

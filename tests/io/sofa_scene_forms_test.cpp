@@ -604,3 +604,27 @@ TEST(SofaSceneForms, AddDataRepositoryAndGravity) {
   EXPECT_NE(why.find("sub.scn:1"), std::string::npos) << why;
   EXPECT_NE(why.find("root node"), std::string::npos) << why;
 }
+
+// An OglModel without a file takes the surface of the nearest topology above it: a grid's boundary
+// (two triangles per boundary quad), or the triangles a Quad2TriangleTopologicalMapping wrote
+// (here from inward quads, so the two surfaces differ).
+TEST(SofaSceneForms, AVisualModelWithoutAFileTakesTheSurfaceAbove) {
+  auto trianglesOf = [](const std::string& inner) {
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root"><Node name="body">
+      <RegularGridTopology name="grid" n="2 2 2" min="0 0 0" max="1 1 1"/><MechanicalObject/>)" + inner + R"(</Node></Node>)",
+                                               "visual_surface.xml"));
+    scene->init();
+    FieldValue t;
+    for (Component* c : scene->all<Component>())
+      if (c->name() == "Visual") c->field("triangles", t);
+    return t.values;
+  };
+  const auto grid = trianglesOf(R"(<Node name="v"><OglModel name="Visual"/><IdentityMapping/></Node>)");
+  const auto split = trianglesOf(R"(<Node name="q"><QuadSetTopologyContainer name="quads"/>
+      <Hexa2QuadTopologicalMapping input="@../grid" output="@quads" flipNormals="true"/>
+      <Node name="t"><TriangleSetTopologyContainer name="tris"/><Quad2TriangleTopologicalMapping input="@../quads" output="@tris"/>
+      <Node name="v"><OglModel name="Visual"/><IdentityMapping input="@../../.." output="@Visual"/></Node></Node></Node>)");
+  EXPECT_EQ(grid.size(), 36u);
+  EXPECT_EQ(split.size(), 36u);
+  EXPECT_NE(grid, split);
+}
