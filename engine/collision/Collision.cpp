@@ -528,6 +528,8 @@ void SurfaceCollisionModel::addForce(State& s, const Eigen::Matrix3Xd& x, const 
     // A contact between two bodies and its mirror push together or not at all: whether they do is
     // decided at detection, before either body's solver moves it.
     if (!c.partner) c.active = g < 0;
+    // A pair the other body's solve has already parted does not pull this side back.
+    else if (c.active && g >= 0) c.active = false;
     if (!c.active) continue;
     const Eigen::Vector3d fc = c.k * g * c.n;
     for (int k = 0; k < c.count; ++k) f.col(c.nodes[k]) += c.w[k] * fc;
@@ -587,7 +589,11 @@ void SurfaceCollisionModel::finishPenalty(State& s, const Eigen::Matrix3Xd& x) c
 double SurfaceCollisionModel::gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const {
   double g = c.gap(x);
   if (c.partner) {
-    const Contact& m = c.partner->contacts(s)[c.mirror];
+    const auto& theirs = c.partner->contacts(s);
+    if (c.mirror >= static_cast<int>(theirs.size()))
+      throw Error("contact state of '" + name() + "' names contact " + std::to_string(c.mirror) + " of '" +
+                  c.partner->name() + "', which has " + std::to_string(theirs.size()) + ": the state belongs to another run");
+    const Contact& m = theirs[c.mirror];
     g += c.n.dot(m.point(c.partner->state_->x(s)) - m.p0);
   }
   return g;
@@ -693,12 +699,22 @@ void CollisionPipeline::init() {
                     "bodies is not handled)");
     return;
   }
-  if (spheres_.empty() || surfaces_.empty()) {
+  // Surfaces of two bodies that are not both fixed can meet.
+  bool pairs = false;
+  for (const SurfaceCollisionModel* a : surfaces_)
+    for (const SurfaceCollisionModel* b : surfaces_)
+      pairs = pairs || (a->active() && b->active() && a->body() != b->body() && !(a->isStatic() && b->isStatic()));
+  if ((spheres_.empty() || surfaces_.empty()) && !pairs) {
     // Nothing can touch (as SOFA's models without a partner or self-collision): no response to set up.
     scene().addNote(loc().str() + ": note: CollisionPipeline has " + std::to_string(spheres_.size()) + " sphere and " +
                     std::to_string(surfaces_.size()) + " surface collision models: no contact can occur");
     return;
   }
+  if (pairs && settings_.response == ContactSettings::Response::Penalty)
+    for (const SurfaceCollisionModel* s : surfaces_)
+      if (!(settings_.contactDistance + s->ownContactDistance() > 0))
+        throw s->error("meets another body's surface under the penalty response, whose stiffness is SOFA's k1 k2 / "
+                       "contactDistance: give the intersection (or this model) a contactDistance above 0");
   if (settings_.response == ContactSettings::Response::Penalty) {
     for (SurfaceCollisionModel* s : surfaces_)
       if (s->active() && s->contactStiffness() == 0)
@@ -742,7 +758,8 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
     // A model's own contactDistance widens its contacts' (SOFA adds the models' to the intersection's).
     own[i].contactDistance += m->ownContactDistance();
     own[i].alarmDistance += m->ownContactDistance();
-    for (const SphereCollisionModel* sp : spheres_) m->detect(s, *sp, m->surfacePositions(s), own[i], found[i]);
+    for (const SphereCollisionModel* sp : spheres_)
+      if (&sp->body() != m->rigidBody()) m->detect(s, *sp, m->surfacePositions(s), own[i], found[i]);  // not its own body's
     if (m->rigidBody() && !found[i].empty()) {
       Diverged bad;
       bad.step = stepIndex;
@@ -819,6 +836,7 @@ void CollisionPipeline::finish(State& st) const {
   l.lastPenetration = -1e300;
   for (const SurfaceCollisionModel* s : surfaces_) {
     for (const SphereCollisionModel* sp : spheres_) {
+      if (&sp->body() == s->rigidBody()) continue;  // a body's own sphere sits inside its surface
       const Eigen::Vector3d c = sp->centre(st);
       const double R = sp->radius();
       for (int v : s->vertices()) l.lastPenetration = std::max(l.lastPenetration, R - (s->vertexPosition(st, v) - c).norm());

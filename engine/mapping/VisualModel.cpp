@@ -103,9 +103,18 @@ void VisualModel::fromContextBoundary() {
       if (!topo || it->get() == this) continue;
       scene().initComponent(**it);
       FieldValue tris;
+      auto check = [&](int node) {
+        if (node < 0 || node >= x0.cols())
+          throw error("the elements above refer to node " + std::to_string(node) + ", but MechanicalObject '" +
+                      state.name() + "' has " + std::to_string(x0.cols()) + " nodes");
+      };
       if (topo->tetrahedra().cols() > 0) {
+        check(topo->tetrahedra().maxCoeff());
+        check(topo->tetrahedra().minCoeff());
         triangles = boundaryTriangles(topo->tetrahedra(), x0);
       } else if (!topo->hexahedra().empty()) {
+        for (const auto& h : topo->hexahedra())
+          for (int v : h) check(v);
         triangles = hexahedronBoundaryTriangles(topo->hexahedra(), x0);
       } else if ((*it)->field("triangles", tris) && !tris.values.empty()) {
         triangles.resize(3, static_cast<Eigen::Index>(tris.values.size() / 3));

@@ -175,7 +175,7 @@ class PlaneForceField : public Component, public ForceField, public Stateful {
   struct Live : ComponentStateOf<Live> {
     std::vector<char> inside;  // per node, below the plane at the last addForce
     void save(StateWriter& out) const override { out.put(inside); }
-    void load(StateReader& in) override { in.get(inside); }
+    void load(StateReader& in) override { in.getSameSize(inside, "nodes"); }
   };
   std::unique_ptr<ComponentState> initialState() const override {
     auto l = std::make_unique<Live>();

@@ -108,3 +108,32 @@ TEST(TwoBodyContact, TheConstraintResponseStopsTheStepNamingBoth) {
   EXPECT_NE(bad->reason.find("/root/plate"), std::string::npos) << bad->reason;
   EXPECT_NE(bad->reason.find("/root/cube/surface"), std::string::npos) << bad->reason;
 }
+
+// An instrument with a sphere and a surface of its own (SOFA's instrument node with a collision
+// child): the sphere sits inside its own surface, which is no contact.
+TEST(TwoBodyContact, AnInstrumentsSphereIsNotInContactWithItsOwnSurface) {
+  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", R"(
+  <Node name="tool">
+    <MechanicalObject template="Rigid3d" position="0 0 1.5 0 0 0 1"/>
+    <LinearMovementConstraint keyTimes="0 1" movements="0 0 0 0 0 0  0 0 0.1 0 0 0"/>
+    <SphereCollisionModel radius="0.2"/>
+    <Node name="surface">)" + cubeSurface(-0.5) + R"(<MechanicalObject/><TriangleCollisionModel/><RigidMapping/></Node>
+  </Node>
+)"), "two_body.xml"));
+  Simulation sim(*scene);
+  for (int i = 0; i < 5; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
+}
+
+// Two bodies' surfaces under the penalty response need a contact distance: the stiffness is
+// k1 k2 / contactDistance.
+TEST(TwoBodyContact, AZeroContactDistanceIsRefused) {
+  std::string text = world("PenaltyContactForceField", rigidCube());
+  text.replace(text.find("contactDistance=\"0.01\""), std::string("contactDistance=\"0.01\"").size(), "contactDistance=\"0\"");
+  std::string why;
+  try {
+    buildScene(io::parseSceneText(text, "two_body.xml"))->init();
+  } catch (const Error& e) {
+    why = e.what();
+  }
+  EXPECT_NE(why.find("contactDistance above 0"), std::string::npos) << why;
+}
