@@ -48,6 +48,16 @@ const Node* linkedNode(const Node& from, const std::string& link) {
   return node;
 }
 
+LinkTarget linkTarget(Component& c, const std::string& attr) {
+  const AttrValue& v = c.attrs().get(attr);
+  try {
+    return {&c.scene().resolve(c, v.text, v.loc, c.attrs().component() + "." + attr), nullptr};
+  } catch (const Error&) {
+    if (const Node* n = linkedNode(c.node(), v.text)) return {nullptr, n};
+    throw;
+  }
+}
+
 namespace {
 
 // Four significant digits, for messages.
@@ -56,12 +66,6 @@ std::string formatNumber(double v) {
   std::snprintf(buf, sizeof buf, "%.4g", v);
   return buf;
 }
-
-// What a mapping's link names: a component or, as SOFA allows, a node.
-struct LinkTarget {
-  Component* component = nullptr;
-  const Node* node = nullptr;
-};
 
 // Where a mapping writes: a visual surface's vertices, or the nodes of a Vec3d MechanicalObject
 // that no solver integrates (SOFA's mapped state, e.g. collision spheres), whose velocities are
@@ -104,20 +108,10 @@ class PointMapping : public Component, public Mapping {
   MappedPoints output_;
 
  private:
-  LinkTarget target(const std::string& attr) {
-    const AttrValue& v = attrs_.get(attr);
-    try {
-      return {&scene().resolve(*this, v.text, v.loc, attrs_.component() + "." + attr), nullptr};
-    } catch (const Error&) {
-      if (const Node* n = linkedNode(node(), v.text)) return {nullptr, n};
-      throw;
-    }
-  }
-
   MechanicalObject& inputState() {
     MechanicalObject* m = nullptr;
     if (attrs_.isSet("input")) {
-      const LinkTarget t = target("input");
+      const LinkTarget t = linkTarget(*this, "input");
       if (t.node) {
         m = t.node->find<MechanicalObject>();
         if (!m) throw error("input", "node " + t.node->path() + " has no MechanicalObject (Vec3d)");
@@ -139,7 +133,7 @@ class PointMapping : public Component, public Mapping {
   MappedPoints outputPoints() {
     Component* out = nullptr;
     if (attrs_.isSet("output")) {
-      const LinkTarget t = target("output");
+      const LinkTarget t = linkTarget(*this, "output");
       if (t.node) {
         out = t.node->find<VisualModel>();
         if (!out) out = t.node->find<MechanicalObject>();

@@ -72,6 +72,12 @@ void checkVec3Template(const Component& c);
 // The node a link names, for SOFA's node links ("@..": the parent, "@.": this node,
 // "@/root/body", "@child/"); nullptr if the path does not name a node.
 const Node* linkedNode(const Node& from, const std::string& link);
+// What a mapping's link attribute names: a component or, as SOFA allows, a node.
+struct LinkTarget {
+  Component* component = nullptr;
+  const Node* node = nullptr;
+};
+LinkTarget linkTarget(Component& c, const std::string& attr);
 
 void registerVisualModel(Registry& r);
 

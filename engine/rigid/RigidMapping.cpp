@@ -8,32 +8,12 @@
 
 namespace viscera {
 
-namespace {
-
-// What a link names: a component or, as SOFA allows, a node ("@..", "@.").
-struct LinkTarget {
-  Component* component = nullptr;
-  const Node* node = nullptr;
-};
-
-LinkTarget target(Component& c, const std::string& attr) {
-  const AttrValue& v = c.attrs().get(attr);
-  try {
-    return {&c.scene().resolve(c, v.text, v.loc, c.attrs().component() + "." + attr), nullptr};
-  } catch (const Error&) {
-    if (const Node* n = linkedNode(c.node(), v.text)) return {nullptr, n};
-    throw;
-  }
-}
-
-}  // namespace
-
 void RigidMapping::init() {
   const auto& t = attrs_.str("template");
   if (!t.empty() && t.rfind("Rigid", 0) != 0)
     throw error("template", "maps a rigid body (Rigid3d,Vec3d), got '" + t + "'");
   if (attrs_.isSet("input")) {
-    const LinkTarget t = target(*this, "input");
+    const LinkTarget t = linkTarget(*this, "input");
     body_ = t.node ? t.node->find<RigidObject>() : dynamic_cast<RigidObject*>(t.component);
     if (!body_) throw error("input", "'" + attrs_.get("input").text + "' is not a MechanicalObject with template=\"Rigid3d\" (or its node)");
   } else {
@@ -47,7 +27,7 @@ void RigidMapping::init() {
 
   Component* out = nullptr;
   if (attrs_.isSet("output")) {
-    const LinkTarget t = target(*this, "output");
+    const LinkTarget t = linkTarget(*this, "output");
     out = t.component;
     if (t.node && !(out = t.node->find<MechanicalObject>())) out = t.node->find<VisualModel>();
   } else {
