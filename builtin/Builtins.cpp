@@ -9,6 +9,8 @@ void registerConstraints(Registry&);
 void registerRestShapeSprings(Registry&);
 void registerSprings(Registry&);
 void registerRegionEngines(Registry&);
+void registerMovementConstraints(Registry&);
+void registerGeometryEngines(Registry&);
 void registerTopologies(Registry&);
 void registerTetrahedronFEM(Registry&);
 void registerHexahedronFEM(Registry&);
@@ -34,6 +36,8 @@ void registerBuiltins(Registry& r) {
   registerRestShapeSprings(r);
   registerSprings(r);
   registerRegionEngines(r);
+  registerMovementConstraints(r);
+  registerGeometryEngines(r);
   registerTopologies(r);
   registerTetrahedronFEM(r);
   registerHexahedronFEM(r);
@@ -58,7 +62,9 @@ void registerBuiltins(Registry& r) {
                         "VisualGrid", "LineAxis", "PositionalLight", "OglShader", "OglShadowShader", "OglTexture",
                         "OglShaderDefineMacro", "OglFloatVariable", "OglLabel", "OglViewport", "OglGrid",
                         "RecordedCamera", "ViewerSetting", "Visual3DText", "ConstraintAttachButtonSetting",
-                        "AttachBodyButtonSetting", "MouseButtonSetting"})
+                        "AttachBodyButtonSetting", "MouseButtonSetting", "ClipPlane", "OrderIndependentTransparencyManager",
+                        "VisualBoundingBox", "TrailRenderer", "VisualVectorField", "CylinderVisualModel", "PointSplatModel",
+                        "OglIntVariable", "PostProcessManager"})
     r.addIgnored(t, drawing);
   r.addIgnored("RequiredPlugin", "plugins are built in");
   {

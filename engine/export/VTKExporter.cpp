@@ -33,6 +33,8 @@ class VTKExporter : public Component, public Observer {
     if (!attrs_.isSet("mstate") && !node().find<MechanicalObject>()) visual_ = node().find<VisualModel>();
     if (visual_) {
       scene().initComponent(*visual_);
+      if (!attrs_.str("pointsDataFields").empty())
+        throw error("pointsDataFields", "a visual surface '" + visual_->name() + "' is written with its displacement only");
       // The surface's points carry only their displacement (the default for it).
       std::istringstream in(attrs_.isSet("fields") ? attrs_.str("fields") : "displacement");
       for (std::string f; in >> f;) {
@@ -50,15 +52,35 @@ class VTKExporter : public Component, public Observer {
     for (std::string f; in >> f;) {
       if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force")
         throw error("fields", "unknown field '" + f + "' (choose from displacement, velocity, force, vonMises)");
-      if (f == "vonMises" && !fem_) throw error("fields", "vonMises needs a TetrahedronFEMForceField in the node");
+      if (f == "vonMises" && !fem_) {
+        if (!attrs_.isSet("fields")) continue;  // the default list has it only beside a tetrahedral FEM
+        throw error("fields", "vonMises needs a TetrahedronFEMForceField in the node");
+      }
       fields_.push_back(f);
+    }
+    // SOFA's form: "object.data" names a data field of the exported state.
+    std::istringstream data(attrs_.str("pointsDataFields"));
+    for (std::string entry; data >> entry;) {
+      const auto dot = entry.rfind('.');
+      const std::string object = dot == std::string::npos ? state_->name() : entry.substr(0, dot);
+      const std::string field = dot == std::string::npos ? entry : entry.substr(dot + 1);
+      if (object != state_->name())
+        throw error("pointsDataFields", "'" + entry + "': only fields of the exported MechanicalObject '" +
+                                            state_->name() + "' can be written");
+      if (field != "position" && field != "velocity" && field != "force" && field != "rest_position")
+        throw error("pointsDataFields", "'" + entry + "': unknown field '" + field +
+                                            "' (choose from position, velocity, force, rest_position)");
+      if (std::find(fields_.begin(), fields_.end(), field) == fields_.end()) fields_.push_back(field);
     }
   }
   void begin(const State& s, double t) override {
     // Unnamed, a surface exporter takes the visual model's name so that it does not share its
     // .pvd with the body's exporter.
     const std::string fallback = visual_ ? visual_->name() : name();
-    const std::string name = attrs_.isSet("filename") ? attrs_.str("filename") : fallback;
+    std::string name = attrs_.isSet("filename") ? attrs_.str("filename") : fallback;
+    // SOFA's scenes name the files with an extension that the step number and .vtu follow.
+    for (const char* ext : {".vtk", ".vtu", ".vtp"})
+      if (name.size() > 4 && name.compare(name.size() - 4, 4, ext) == 0) name.resize(name.size() - 4);
     if (scene().escapesOutputFolder(name))
       throw error("filename", "'" + name + "' would be written outside the output folder (--out); give a name inside it");
     base_ = scene().outputPath(name);
@@ -153,7 +175,11 @@ class VTKExporter : public Component, public Observer {
         cd.push_back({"vonMises", 1, std::vector<double>(vm.data(), vm.data() + vm.size())});
         continue;
       }
-      Eigen::Matrix3Xd m = f == "displacement" ? Eigen::Matrix3Xd(fr.x - rest_) : f == "velocity" ? fr.v : fr.f;
+      const Eigen::Matrix3Xd m = f == "displacement"    ? Eigen::Matrix3Xd(fr.x - rest_)
+                                 : f == "position"      ? fr.x
+                                 : f == "rest_position" ? rest_
+                                 : f == "velocity"      ? fr.v
+                                                        : fr.f;
       pd.push_back({f, 3, std::vector<double>(m.data(), m.data() + m.size())});
     }
     io::writeVtu(file, fr.x, tets_, pd, cd, options_);
@@ -188,11 +214,14 @@ void registerVTKExporter(Registry& r) {
           "with an OglModel/VisualModel and no MechanicalObject (a visual child node; `mstate` not set), writes that "
           "surface instead: <filename>_<step>.vtp with its triangles and the point field displacement. A run that "
           "diverges between export steps still writes its last good step.";
-  s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name; beside a visual model, that model's name)"));
+  s.add(AttrSpec::string("filename").help("base name of the files (default: the component's name; beside a visual model, that model's name); an extension .vtk, .vtu or .vtp is dropped"));
   s.add(AttrSpec::integer("exportEveryNumberOfSteps").def("1").atLeast(0).help("write every N steps (0: only at begin/end)"));
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
   s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
-  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises (a visual surface: displacement only, its default)"));
+  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises (by default only beside a TetrahedronFEMForceField; a visual surface: displacement only, its default)"));
+  s.add(AttrSpec::string("pointsDataFields").def("").help(
+      "SOFA's form of extra point fields: object.field entries of the exported MechanicalObject (position, velocity, "
+      "force, rest_position), written under the field's name"));
   s.add(AttrSpec::boolean("compress").def("true").help(
       "zlib-compress the arrays (vtkZLibDataCompressor, read by ParaView and VTK) with Int32 connectivity; "
       "false: plain base64 binary with Int64 connectivity"));

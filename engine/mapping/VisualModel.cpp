@@ -40,10 +40,12 @@ TriangleList trianglesOf(const std::vector<double>& v) {
 
 void VisualModel::init() {
   checkVec3Template(*this);
-  const int sources = attrs_.isSet("filename") + attrs_.isSet("src") + attrs_.isSet("position");
+  // With `src`, `position` may replace the source's positions (SOFA's src + position="@engine...").
+  const bool moved = attrs_.isSet("src") && attrs_.isSet("position");
+  const int sources = attrs_.isSet("filename") + attrs_.isSet("src") + (attrs_.isSet("position") && !moved);
   if (sources > 1) throw error("give one of `filename`, `src` or `position` (with `triangles`), not several");
   const bool faces = attrs_.isSet("triangles") || attrs_.isSet("quads");
-  if (faces && sources > 0 && !attrs_.isSet("position"))
+  if (faces && sources > 0 && (!attrs_.isSet("position") || moved))
     throw error(attrs_.isSet("triangles") ? "triangles" : "quads", "goes with `position`, or alone (indexing the nodes of the body above)");
   if (attrs_.isSet("filename")) fromFile();
   else if (attrs_.isSet("src")) fromSource();
@@ -66,6 +68,13 @@ void VisualModel::fromSource() {
   if (!src->field("position", pos) || pos.values.empty())
     throw error("src", "'" + src->name() + "' (" + src->typeName() + ") has no positions");
   x0 = pointsOf(pos.values);
+  if (attrs_.isSet("position")) {
+    const Eigen::Matrix3Xd given = pointsOf(linkedReals("position"));
+    if (given.cols() != x0.cols())
+      throw error("position", "gives " + std::to_string(given.cols()) + " vertices, but '" + src->name() + "' has " +
+                                  std::to_string(x0.cols()));
+    x0 = given;
+  }
   if (src->field("triangles", tri) && !tri.values.empty()) {
     triangles = trianglesOf(tri.values);
   } else if (auto* topo = dynamic_cast<Topology*>(src); topo && topo->tetrahedra().cols() > 0) {
@@ -211,7 +220,7 @@ void registerVisualModel(Registry& r) {
   s.doc = "A visual surface: triangles moved every step by a BarycentricMapping or IdentityMapping in the same node "
           "(usually a child of the deformable body's node), written by a VTKExporter in that node as a .vtp series. "
           "Vertices and triangles come from `filename` (.obj, .stl, .off, .ply), `src` (a loader's position and "
-          "triangles; a tetrahedral one gives its boundary), `position` and `triangles` or `quads` (without `position`: indexing the body's nodes), or else the boundary "
+          "triangles; a tetrahedral one gives its boundary; `position` beside it replaces the positions), `position` and `triangles` or `quads` (without `position`: indexing the body's nodes), or else the boundary "
           "surface of the tetrahedra above (all nodes of the MechanicalObject there, vertex i = node i). "
           "Placement: scale3d, then rotation, then translation. No effect on the mechanics.";
   s.add(AttrSpec::string("template").def("Vec3d").help("coordinate type (Vec3d, Vec3f, ExtVec3f); computed in double precision"));
@@ -227,7 +236,10 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));
   s.add(AttrSpec::string("texturename").help(drawingOnly));
-  s.add(AttrSpec::reals("normals").help(drawingOnly));
+  s.add(AttrSpec::reals("normals").alias("normal").linked().help(drawingOnly));
+  // SOFA draws from `vertices` when texture seams split a position into several drawn vertices.
+  s.add(AttrSpec::reals("vertices").linked().help(drawingOnly));
+  s.add(AttrSpec::boolean("putOnlyTexCoords").help(drawingOnly));
   for (const char* flag : {"useNormals", "updateNormals", "computeTangents", "handleDynamicTopology"})
     s.add(AttrSpec::boolean(flag).help(drawingOnly));
   s.factory = [](BuildContext& c) { return std::make_unique<VisualModel>(c); };

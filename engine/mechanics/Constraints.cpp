@@ -52,6 +52,13 @@ class FixedConstraint : public Component, public ProjectiveConstraint {
                                    std::to_string(state_->size()) + " nodes)");
     std::sort(nodes_.begin(), nodes_.end());
     nodes_.erase(std::unique(nodes_.begin(), nodes_.end()), nodes_.end());
+    // The solve never changes a fixed node's velocity; SOFA's switch would also zero a velocity
+    // it starts with, which is refused here rather than silently kept.
+    if (spec().find("activate_projectVelocity") && attrs_.boolean("activate_projectVelocity"))
+      for (int i : nodes_)
+        if (state_->vInit.col(i).squaredNorm() > 0)
+          throw error("activate_projectVelocity", "fixed node " + std::to_string(i) +
+                                                      " starts with a velocity; give it none");
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name != "indices") return false;
@@ -286,6 +293,9 @@ void registerConstraints(Registry& r) {
     s.doc = "Holds nodes at their positions: their rows are removed from the implicit system.";
     s.add(AttrSpec::ints("indices").def("").atLeast(0).linked().help("fixed nodes (or a link such as @box.indices)"));
     s.add(AttrSpec::boolean("fixAll").def("false").help("fix every node"));
+    s.add(AttrSpec::boolean("activate_projectVelocity").def("false").help(
+        "SOFA's switch to zero the fixed nodes' velocities too; the solve never changes them, so they stay zero "
+        "(true with a fixed node that starts with a velocity is refused)"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
       if (inRigidNode(c)) return std::make_unique<RigidHold>(c);

@@ -1,8 +1,9 @@
-// SphereROI (the nodes and tetrahedra inside spheres) and IndexValueMapper (a value written at
+// SphereROI (the nodes and tetrahedra inside spheres), PairBoxROI and IndexValueMapper (a value written at
 // those indices): with them a scene gives a region of the tissue its own Young's modulus, as SOFA
 // scenes do, e.g. youngModulus="@young.outputValues".
 #include <algorithm>
 #include <cmath>
+#include <Eigen/Geometry>
 
 #include "core/Registry.h"
 #include "core/Scene.h"
@@ -76,6 +77,47 @@ class SphereROI : public Component {
   std::vector<int> nodes_, tetrahedra_;
 };
 
+// SOFA's PairBoxROI: the points inside one box and not inside another (a frame of the region's
+// boundary, as the patch tests use it). Both boxes are closed.
+class PairBoxROI : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    Eigen::Matrix3Xd X;
+    if (attrs_.isSet("position")) {
+      const auto p = linkedReals("position");
+      X = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+    } else {
+      X = contextState(*this).x0;  // SOFA tests the rest positions
+    }
+    auto box = [&](const char* name) {
+      const auto& b = attrs_.reals(name);
+      Eigen::AlignedBox3d B;
+      B.extend(Eigen::Vector3d(b[0], b[1], b[2]));
+      B.extend(Eigen::Vector3d(b[3], b[4], b[5]));  // corners in either order, as SOFA swaps them
+      return B;
+    };
+    const Eigen::AlignedBox3d outer = box("inclusiveBox"), inner = box("includedBox");
+    for (Eigen::Index i = 0; i < X.cols(); ++i)
+      if (outer.contains(X.col(i)) && !inner.contains(X.col(i))) {
+        nodes_.push_back(static_cast<int>(i));
+        for (int a = 0; a < 3; ++a) points_.push_back(X(a, i));
+      }
+    if (nodes_.empty() && attrs_.boolean("strict"))
+      throw error("inclusiveBox", "the boxes select no point (set strict=\"false\" to allow an empty selection)");
+  }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "indices") out.values.assign(nodes_.begin(), nodes_.end());
+    else if (name == "pointsInROI" || name == "pointsInBox") out.values = points_;
+    else return false;
+    return true;
+  }
+
+ private:
+  std::vector<int> nodes_;
+  std::vector<double> points_;
+};
+
 class IndexValueMapper : public Component {
  public:
   using Component::Component;
@@ -116,6 +158,21 @@ void registerRegionEngines(Registry& r) {
     s.add(AttrSpec::link("topology").help("tetrahedral topology (default: the last one in the node, or the grid)"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<SphereROI>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "PairBoxROI";
+    s.category = "engine";
+    s.doc = "Selects the points inside `inclusiveBox` and not inside `includedBox` (both closed; rest positions): "
+            "output fields `indices` and `pointsInROI` (their positions).";
+    s.add(AttrSpec::reals("inclusiveBox", 6).req().unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax of the box the points are in"));
+    s.add(AttrSpec::reals("includedBox", 6).req().unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax of the box they are not in"));
+    s.add(AttrSpec::reals("position").alias("rest_position").multipleOf(3).unit(Dimension::length()).linked().help(
+        "points to test (default: rest positions of the node's MechanicalObject)"));
+    s.add(AttrSpec::boolean("strict").def("false").help("fail if the boxes select nothing"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<PairBoxROI>(c); };
     r.add(std::move(s));
   }
   {

@@ -58,6 +58,8 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
     };
     Topology* tets = nullptr;
     Topology* hexa = nullptr;
+    FieldValue quads;  // a surface of quads (a flat grid), when there are no volume cells
+    FieldValue edges;  // node pairs of an edge set, when there are neither
     const bool gridOnly = typeName() == "RegularGridSpringForceField";
     for (const Node* n = &node(); n && !tets && !hexa; n = n->parent())
       for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
@@ -65,9 +67,12 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
           scene().initComponent(**it);
           if (!tets && !gridOnly && t->tetrahedra().cols() > 0) tets = t;
           if (!hexa && !t->hexahedra().empty()) hexa = t;
+          if (quads.values.empty()) (*it)->field("quads", quads);
+          if (edges.values.empty()) (*it)->field("edges", edges);
         }
-    if (gridOnly && !hexa) throw error("no grid (hexahedra) in its node or above");
-    if (!tets && !hexa) throw error("no topology with tetrahedra or hexahedra in its node or above");
+    if (gridOnly && !hexa && quads.values.empty()) throw error("no grid (hexahedra or a flat grid's quads) in its node or above");
+    if (!tets && !hexa && quads.values.empty() && (gridOnly || edges.values.empty()))
+      throw error("no topology with tetrahedra, hexahedra, quads or edges in its node or above");
     const int n = state_->size();
     auto check = [&](int i) {
       if (i < 0 || i >= n) throw error("an element refers to node " + std::to_string(i) + ", but the MechanicalObject has " + std::to_string(n) + " nodes");
@@ -86,6 +91,24 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
       for (int e = 0; e < T.cols(); ++e)
         for (int i = 0; i < 4; ++i)
           for (int j = i + 1; j < 4; ++j) add(check(T(i, e)), check(T(j, e)), ks, kd);
+    } else if (!hexa && quads.values.empty()) {
+      // An edge set: its edges are lines.
+      const double lk = value("linesStiffness", "stiffness"), ld = value("linesDamping", "damping");
+      for (size_t e = 0; e + 2 <= edges.values.size(); e += 2)
+        add(check(static_cast<int>(edges.values[e])), check(static_cast<int>(edges.values[e + 1])), lk, ld);
+    } else if (!hexa) {
+      // Quads: their four sides (lines), then the sides and diagonals (quads).
+      const double lk = value("linesStiffness", "stiffness"), ld = value("linesDamping", "damping");
+      const double qk = value("quadsStiffness", "stiffness"), qd = value("quadsDamping", "damping");
+      for (size_t q = 0; q + 4 <= quads.values.size(); q += 4) {
+        int v[4];
+        for (int k = 0; k < 4; ++k) v[k] = check(static_cast<int>(quads.values[q + k]));
+        if (lk != 0 || ld != 0)
+          for (int k = 0; k < 4; ++k) add(v[k], v[(k + 1) % 4], lk, ld);
+        if (qk != 0 || qd != 0)
+          for (int i = 0; i < 4; ++i)
+            for (int j = i + 1; j < 4; ++j) add(v[i], v[j], qk, qd);
+      }
     } else {
       // Hexahedra: the 12 edges (lines), then the face diagonals (quads), then the body
       // diagonals (cubes: every pair of the 8 nodes).
@@ -203,11 +226,11 @@ void registerSprings(Registry& r) {
     s.name = name;
     s.category = "forcefield";
     s.doc = grid ? "Springs along a grid, as SOFA's: on its hexahedra the edges (lines), face diagonals (quads) and body "
-                   "diagonals (cubes), each with its rest length. Every kind defaults to stiffness 100 and damping 5 "
+                   "diagonals (cubes), on a flat grid's quads their sides (lines) and diagonals (quads), each with its rest length. Every kind defaults to stiffness 100 and damping 5 "
                    "(SOFA's); `stiffness` and `damping` set all kinds at once. Damping acts along the spring and stays "
                    "out of the implicit matrix, as in SOFA."
                  : "Springs on the node pairs of the mesh's elements, each with its rest length, as SOFA's: on tetrahedra "
-                   "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes). A kind "
+                   "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes); on quads (a flat grid) their sides (lines) and diagonals (quads); on an edge set its edges (lines). A kind "
                    "takes its own stiffness and damping when given, else `stiffness` and `damping`; a pair keeps the first "
                    "kind that lists it. Damping acts along the spring and stays out of the implicit matrix, as in SOFA.";
     AttrSpec k = AttrSpec::real("stiffness").atLeast(0).unit(Dimension::stiffness()).help("stiffness of every kind not given its own");

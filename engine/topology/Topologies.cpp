@@ -50,6 +50,30 @@ class RegularGridTopology : public Component, public Topology {
     points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]),
                          attrs_.isSet("p0") ? &p0 : nullptr);
     hexa_ = gridHexahedra(n_);
+    // A grid one node thick along one axis is SOFA's two-dimensional grid: its cells are quads.
+    const int flat = n_[0] == 1 ? 0 : n_[1] == 1 ? 1 : n_[2] == 1 ? 2 : -1;
+    if (flat >= 0 && n_[(flat + 1) % 3] > 1 && n_[(flat + 2) % 3] > 1) {
+      const int a = flat == 0 ? 1 : 0, b = flat == 2 ? 1 : 2;
+      auto id = [&](int i, int j) {
+        std::array<int, 3> c{0, 0, 0};
+        c[a] = i, c[b] = j;
+        return c[0] + n_[0] * (c[1] + n_[1] * c[2]);
+      };
+      for (int j = 0; j + 1 < n_[b]; ++j)
+        for (int i = 0; i + 1 < n_[a]; ++i)
+          for (int v : {id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)}) quads_.push_back(v);
+    }
+    if (attrs_.isSet("position")) {
+      // SOFA's scenes link the grid's positions to the state's (position="@dofs.position") so
+      // that a MechanicalObject without positions takes the grid's; that is what happens here.
+      const AttrValue& v = attrs_.get("position");
+      Component& target = scene().resolve(*this, v.text, v.loc, "RegularGridTopology.position");
+      const auto dot = v.text.rfind('.');
+      if (!dynamic_cast<MechanicalObject*>(&target) || &target.node() != &node() || dot == std::string::npos ||
+          v.text.substr(dot + 1) != "position" || target.attrs().get("position").set)
+        throw error("position", "only a link to the positions of this node's MechanicalObject, which has none of its "
+                                "own, is accepted (the grid gives it its positions)");
+    }
   }
   const Eigen::Matrix3Xd& points() const override { return points_; }
   const TetList& tetrahedra() const override { return kNoTets; }
@@ -59,6 +83,7 @@ class RegularGridTopology : public Component, public Topology {
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "quads" && !quads_.empty()) out.values.assign(quads_.begin(), quads_.end());
     else return false;
     return true;
   }
@@ -67,6 +92,7 @@ class RegularGridTopology : public Component, public Topology {
   std::array<int, 3> n_{};
   Eigen::Matrix3Xd points_;
   HexList hexa_;
+  std::vector<double> quads_;  // a flat grid's cells, four nodes each
 };
 
 // Initialises the topological mappings that fill `container`, so that it holds their elements
@@ -94,8 +120,8 @@ class TetrahedronSetTopologyContainer : public Component, public Topology {
   using Component::Component;
   void init() override {
     initFillersOf(*this);  // a topological mapping may fill this container
-    if (filled_) return;
-    if (attrs_.isSet("src")) {
+    // Filled, it keeps the mapping's tetrahedra; its points may still come from `position`.
+    if (!filled_ && attrs_.isSet("src")) {
       auto* t = dynamic_cast<Topology*>(linkedComponent("src"));
       if (!t) throw error("src", "does not link to a loader or topology");
       points_ = t->points();
@@ -105,6 +131,7 @@ class TetrahedronSetTopologyContainer : public Component, public Topology {
       auto p = linkedReals("position");
       points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, p.size() / 3);
     }
+    if (filled_) return;
     if (attrs_.isSet("tetrahedra")) {
       auto t = linkedInts("tetrahedra");
       tets_ = Eigen::Map<const TetList>(t.data(), 4, t.size() / 4);
@@ -600,6 +627,46 @@ class SparseGridTopology : public Component, public Topology {
   HexList hexa_;
 };
 
+// SOFA's PointSetTopologyContainer and EdgeSetTopologyContainer: points (from `src` or
+// `position`) and, for the second, edges between them.
+class PointEdgeContainer : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    if (attrs_.isSet("src")) {
+      FieldValue p, e;
+      Component* c = linkedComponent("src");
+      if (!c || !c->field("position", p)) throw error("src", "does not link to a loader or topology with positions");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.values.data(), 3, static_cast<Eigen::Index>(p.values.size() / 3));
+      if (spec().find("edges") && c->field("edges", e)) edges_ = e.values;
+    }
+    if (attrs_.isSet("position")) {
+      const auto p = linkedReals("position");
+      points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+    }
+    if (spec().find("edges") && attrs_.isSet("edges")) {
+      const auto e = linkedInts("edges");
+      edges_.assign(e.begin(), e.end());
+    }
+    for (double v : edges_)
+      if (points_.cols() > 0 && v >= points_.cols())
+        throw error("edges", "refer to node " + std::to_string(static_cast<int>(v)) + ", but there are " +
+                                 std::to_string(points_.cols()) + " points");
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "edges" && !edges_.empty()) out.values = edges_;
+    else return false;
+    return true;
+  }
+
+ private:
+  Eigen::Matrix3Xd points_;
+  std::vector<double> edges_;  // node pairs
+};
+
 // What every mesh loader declares: the file, its placement and SOFA's normal flip.
 void addLoaderAttributes(ComponentSpec& s) {
   s.add(AttrSpec::file("filename").req().help("mesh file, relative to the scene file or found along the data search path"));
@@ -614,12 +681,15 @@ void registerTopologies(Registry& r) {
     ComponentSpec s;
     s.name = "RegularGridTopology";
     s.category = "topology";
-    s.doc = "A regular grid of n[0] x n[1] x n[2] nodes over [min, max] (x fastest, then y, then z) and its hexahedra.";
+    s.doc = "A regular grid of n[0] x n[1] x n[2] nodes over [min, max] (x fastest, then y, then z) and its hexahedra; "
+            "a grid one node thick along one axis has quads (output field `quads`) instead.";
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per axis (at most 10 million nodes in all)"));
     s.add(AttrSpec::reals("min", 3).def("0 0 0").unit(Dimension::length()).help("lower corner"));
     s.add(AttrSpec::reals("max", 3).def("1 1 1").unit(Dimension::length()).help("upper corner"));
     s.add(AttrSpec::reals("p0", 3).unit(Dimension::length()).help(
         "the first node, in place of `min` (SOFA's p0: the grid keeps the spacing of [min, max] and starts here)"));
+    s.add(AttrSpec::link("position").help(
+        "SOFA's link to the positions of the node's MechanicalObject (\"@dofs.position\"), which then takes the grid's"));
     s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };
     r.add(std::move(s));
   }
@@ -682,6 +752,21 @@ void registerTopologies(Registry& r) {
     s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help("node indices, three per triangle"));
     s.add(AttrSpec::file("fileTopology").help("a surface file (.obj, .stl, .off, .ply) to take points and triangles from"));
     s.factory = [](BuildContext& c) { return std::make_unique<TriangleSetTopologyContainer>(c); };
+    r.add(std::move(s));
+  }
+  for (const bool edges : {false, true}) {
+    ComponentSpec s;
+    s.name = edges ? "EdgeSetTopologyContainer" : "PointSetTopologyContainer";
+    s.aliases = {edges ? "EdgeSetTopology" : "PointSetTopology"};
+    s.category = "topology";
+    s.doc = edges ? "Holds points and the edges between them (node pairs): from a loader (`src`) or explicit lists. "
+                    "Springs on a mesh (MeshSpringForceField) take its edges as lines."
+                  : "Holds points: from a loader (`src`) or an explicit list. A MechanicalObject without positions takes "
+                    "them.";
+    s.add(AttrSpec::link("src").help(edges ? "a loader to take points and edges from" : "a loader to take points from"));
+    s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points"));
+    if (edges) s.add(AttrSpec::ints("edges").multipleOf(2).atLeast(0).linked().help("node indices, two per edge"));
+    s.factory = [](BuildContext& c) { return std::make_unique<PointEdgeContainer>(c); };
     r.add(std::move(s));
   }
   {

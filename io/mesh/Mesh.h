@@ -23,6 +23,7 @@ struct VolumeMesh {
 // unreadable files, bad counts, indices out of range, unsupported element types or formats.
 VolumeMesh readVolumeMesh(const std::string& path);
 VolumeMesh readGmsh(const std::string& path);
+// A .vtk file: legacy VTK, or VTK XML saved under that extension (as SOFA reads it).
 VolumeMesh readVtkLegacy(const std::string& path);
 VolumeMesh readVtu(const std::string& path);
 

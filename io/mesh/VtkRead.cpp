@@ -197,6 +197,9 @@ class VtkLegacyReader {
 
 VolumeMesh readVtkLegacy(const std::string& path) {
   const std::string text = detail::readWholeFile(path);
+  // SOFA's loader also takes a VTK XML unstructured grid saved with the .vtk extension.
+  const size_t start = text.find_first_not_of(" \t\r\n");
+  if (start != std::string::npos && text[start] == '<') return readVtu(path);
   return VtkLegacyReader(text, path).read();
 }
 

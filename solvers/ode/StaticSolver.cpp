@@ -52,7 +52,27 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     absRes_ = attrs_.real("absolute_residual_tolerance_threshold");
     relRes_ = attrs_.real("relative_residual_tolerance_threshold");
     absCorr_ = attrs_.real("absolute_correction_tolerance_threshold");
-    exact_ = attrs_.boolean("exactTangent");
+    if (attrs_.isSet("newtonSolver")) {
+      // SOFA's newer form: the iteration settings live in a NewtonRaphsonSolver it links to.
+      Component* newton = linkedComponent("newtonSolver");
+      if (!newton || newton->typeName() != "NewtonRaphsonSolver")
+        throw error("newtonSolver", "does not link to a NewtonRaphsonSolver");
+      for (const char* own : {"newton_iterations", "absolute_residual_tolerance_threshold",
+                              "relative_residual_tolerance_threshold", "absolute_correction_tolerance_threshold"})
+        if (attrs_.isSet(own))
+          throw error(own, "is set on the linked NewtonRaphsonSolver '" + newton->name() + "'; set it there");
+      const Attributes& n = newton->attrs();
+      iterations_ = static_cast<int>(n.integer("maxNbIterationsNewton"));
+      absRes_ = n.real("absoluteResidualStoppingThreshold");
+      relRes_ = n.real("relativeInitialStoppingThreshold");
+      relSuccessive_ = n.real("relativeSuccessiveStoppingThreshold");
+      absCorr_ = n.real("absoluteEstimateDifferenceThreshold");
+      relCorr_ = n.real("relativeEstimateDifferenceThreshold");
+      lineSearch_ = static_cast<int>(n.integer("maxNbIterationsLineSearch"));
+      lineSearchFactor_ = n.real("lineSearchCoefficient");
+    }
+    // SOFA's newer form solves with the node's linear solver and SOFA's stiffness, as SOFA does.
+    exact_ = attrs_.isSet("exactTangent") ? attrs_.boolean("exactTangent") : !attrs_.isSet("newtonSolver");
     if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) {
       if (!rigid_->idle())
         throw error("does not solve rigid bodies; use EulerImplicitSolver or EulerExplicitSolver in the node of '" +
@@ -87,13 +107,21 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
       d.object = sys_->state().name();
       return d;
     };
-    for (int it = 0; it < iterations_; ++it) {
-      sys_->computeForce(st, s.x, zero, s.f);
+    // The projected force at x (the residual), linearising the force fields there.
+    auto residual = [&](const Eigen::Matrix3Xd& x) {
+      sys_->computeForce(st, x, zero, s.f);
       Eigen::Matrix3Xd r = s.f;
       sys_->project(r);
+      return r;
+    };
+    double previous = -1;
+    for (int it = 0; it < iterations_; ++it) {
+      const Eigen::Matrix3Xd r = residual(s.x);
       const double rn = r.norm();
       if (r0 < 0) r0 = rn;
       if (rn <= absRes_ || (r0 > 0 && rn <= relRes_ * r0)) break;
+      if (relSuccessive_ > 0 && previous > 0 && rn <= relSuccessive_ * previous) break;
+      previous = rn;
       // Solve (-K) dx = f.
       sys_->assembleStiffness(st, K);
       K.scale(-1.0);
@@ -122,9 +150,22 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
         if (!info.ok) return fail("linear solver failed: " + info.message);
       }
       if (!dx.allFinite()) return fail("non-finite Newton correction");
-      s.x += Eigen::Map<const Eigen::Matrix3Xd>(dx.data(), 3, n);
+      Eigen::Matrix3Xd step = Eigen::Map<const Eigen::Matrix3Xd>(dx.data(), 3, n);
+      // Backtracking (SOFA's line search): the step shrinks by lineSearchFactor_ until the
+      // residual falls; if it never does, the step with the smallest residual is taken.
+      if (lineSearch_ > 1) {
+        double best = -1, scale = 1, bestScale = 1;
+        for (int k = 0; k < lineSearch_; ++k, scale *= lineSearchFactor_) {
+          const double trial = residual(s.x + scale * step).norm();
+          if (best < 0 || trial < best) best = trial, bestScale = scale;
+          if (trial < rn) break;
+        }
+        step *= bestScale;
+      }
+      const double moved = step.norm(), size = s.x.norm();
+      s.x += step;
       ++l.iterationsDone;
-      if (dx.norm() <= absCorr_) break;
+      if (moved <= absCorr_ || (relCorr_ > 0 && size > 0 && moved <= relCorr_ * size)) break;
     }
     s.v.setZero();
     if (auto bad = sys_->check(s.x, s.v, stepIndex, t)) {
@@ -143,18 +184,57 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
  private:
   int iterations_ = 10;
   double absRes_ = 1e-10, relRes_ = 1e-10, absCorr_ = 1e-12;
+  double relSuccessive_ = 0, relCorr_ = 0;         // off unless a NewtonRaphsonSolver sets them
+  int lineSearch_ = 1;                             // trial steps per iteration (1: none)
+  double lineSearchFactor_ = 0.5;
   bool exact_ = true;
   std::unique_ptr<RigidBodyIntegrator> rigid_;  // a held or driven body's node
   std::unique_ptr<MechanicalSystem> sys_;
   LinearSolver* linear_ = nullptr;
 };
 
+// SOFA's NewtonRaphsonSolver as a StaticSolver's settings (StaticSolver newtonSolver="@newton"):
+// the component holds them; the StaticSolver that links to it runs the iterations.
+class NewtonRaphsonSettings : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    for (const auto& c : node().components())
+      if (c->typeName() == "StaticSolver" && c->attrs().isSet("newtonSolver")) return;
+    throw error("is used by a StaticSolver that links to it (StaticSolver newtonSolver=\"@" + name() +
+                "\") in its node; there is none");
+  }
+};
+
 }  // namespace
 
 void registerStaticSolver(Registry& r) {
+  {
+    ComponentSpec s;
+    s.name = "NewtonRaphsonSolver";
+    s.category = "solver";
+    s.doc = "SOFA's Newton-Raphson settings for a StaticSolver in its node that links to it (newtonSolver=\"@name\"). "
+            "Each iteration solves the tangent system; it stops at the first criterion met: the residual's norm under "
+            "absoluteResidualStoppingThreshold, under relativeInitialStoppingThreshold times the first one or under "
+            "relativeSuccessiveStoppingThreshold times the previous one, or a correction under "
+            "absoluteEstimateDifferenceThreshold (relativeEstimateDifferenceThreshold times the positions' norm). With "
+            "maxNbIterationsLineSearch > 1 a step is halved (lineSearchCoefficient) until the residual falls.";
+    s.add(AttrSpec::integer("maxNbIterationsNewton").def("1").atLeast(1).help("Newton iterations per step at most"));
+    s.add(AttrSpec::real("absoluteResidualStoppingThreshold").alias("absoluteResidualToleranceThreshold").def("1e-5").atLeast(0)
+              .unit(Dimension::force()).help("stop when the residual's norm falls to this"));
+    s.add(AttrSpec::real("relativeInitialStoppingThreshold").def("1e-5").atLeast(0).help("stop when the residual falls to this times the first"));
+    s.add(AttrSpec::real("relativeSuccessiveStoppingThreshold").def("1e-5").atLeast(0).help("stop when the residual falls to this times the previous one"));
+    s.add(AttrSpec::real("absoluteEstimateDifferenceThreshold").def("0").atLeast(0).unit(Dimension::length()).help("stop when a correction's norm falls to this"));
+    s.add(AttrSpec::real("relativeEstimateDifferenceThreshold").def("0").atLeast(0).help("stop when a correction's norm falls to this times the positions' norm"));
+    s.add(AttrSpec::integer("maxNbIterationsLineSearch").def("5").atLeast(1).help("trial steps per iteration (1: the full step)"));
+    s.add(AttrSpec::real("lineSearchCoefficient").def("0.5").above(0).below(1).help("factor a trial step shrinks by"));
+    s.add(AttrSpec::boolean("warnWhenLineSearchFails").def("true").help("SOFA's message switch; accepted, no message is printed"));
+    s.add(AttrSpec::boolean("updateStateWhenDiverged").def("true").help("keep the last iterate when the iterations do not converge (the only behaviour here)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<NewtonRaphsonSettings>(c); };
+    r.add(std::move(s));
+  }
   ComponentSpec s;
   s.name = "StaticSolver";
-  s.aliases = {"NewtonRaphsonSolver"};
   s.category = "solver";
   s.doc = "Static equilibrium by Newton's method each step (loads applied at once; inertia ignored).";
   s.add(AttrSpec::integer("newton_iterations").alias("maxNbIterationsNewton").def("20").atLeast(1).help("maximum Newton iterations per step"));
@@ -162,7 +242,8 @@ void registerStaticSolver(Registry& r) {
   s.add(AttrSpec::real("relative_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| / ||f0|| falls to this"));
   s.add(AttrSpec::real("absolute_correction_tolerance_threshold").def("1e-12").atLeast(0).help("stop when ||dx|| falls to this"));
   s.add(AttrSpec::real("relative_correction_tolerance_threshold").def("1e-12").atLeast(0).help("accepted for SOFA compatibility"));
-  s.add(AttrSpec::boolean("exactTangent").def("true").help("exact corotational tangent with sparse LU (false: the node's linear solver with SOFA's stiffness)"));
+  s.add(AttrSpec::link("newtonSolver").help("a NewtonRaphsonSolver whose settings replace the four above (SOFA's newer form)"));
+  s.add(AttrSpec::boolean("exactTangent").def("true").help("exact corotational tangent with sparse LU (false: the node's linear solver with SOFA's stiffness; the default with `newtonSolver`, as SOFA)"));
   s.factory = [](BuildContext& c) { return std::make_unique<StaticSolver>(c); };
   r.add(std::move(s));
 }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "builtin/Builtins.h"
+#include "core/Error.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
 #include "engine/Simulation.h"
@@ -137,6 +138,46 @@ TEST(ListedSprings, AHangingMassStretchesTheSpringByItsWeightOverK) {
   </Node>)", 1, 1);
   EXPECT_NEAR(x.y(), -(0.8 + 0.5 * 9.81 / 200), 1e-10);
   EXPECT_NEAR(x.x(), 0, 1e-12);
+}
+
+// SOFA's newer static form: the iteration settings in a NewtonRaphsonSolver the StaticSolver links
+// to (here with a backtracking line search); the equilibrium is the same m g / k stretch.
+TEST(ListedSprings, NewtonRaphsonSettingsReachTheSameEquilibrium) {
+  const Eigen::Vector3d x = after(R"(<Node name="root" gravity="0 -9.81 0">
+    <NewtonRaphsonSolver name="newton" maxNbIterationsNewton="30" absoluteResidualStoppingThreshold="1e-12"
+                         relativeInitialStoppingThreshold="0" relativeSuccessiveStoppingThreshold="0"
+                         maxNbIterationsLineSearch="4"/>
+    <StaticSolver newtonSolver="@newton"/>
+    <SparseLDLSolver/>
+    <MechanicalObject position="0 0 0  0.3 -2 0"/>
+    <UniformMass vertexMass="0.5"/>
+    <FixedConstraint indices="0"/>
+    <SpringForceField spring="0 1 200 0 0.8"/>
+  </Node>)", 1, 1);
+  // It starts off to the side; at equilibrium the spring hangs straight down.
+  EXPECT_NEAR(x.y(), -(0.8 + 0.5 * 9.81 / 200), 1e-10);
+  EXPECT_NEAR(x.x(), 0, 1e-10);
+}
+
+TEST(ListedSprings, NewtonRaphsonSettingsNeedTheirStaticSolver) {
+  const std::string body = R"(<MechanicalObject position="0 0 0"/><UniformMass vertexMass="1"/>)";
+  auto errorOf = [](const std::string& text) {
+    try {
+      auto scene = buildScene(io::parseSceneText(text, "newton.xml"));
+      scene->init();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(errorOf(R"(<Node name="root"><NewtonRaphsonSolver name="n"/><EulerImplicitSolver/><SparseLDLSolver/>)" + body +
+                    "</Node>")
+                .find("NewtonRaphsonSolver 'n': is used by a StaticSolver that links to it"),
+            std::string::npos);
+  EXPECT_NE(errorOf(R"(<Node name="root"><NewtonRaphsonSolver name="n"/><StaticSolver newtonSolver="@n" newton_iterations="3"/><SparseLDLSolver/>)" +
+                    body + "</Node>")
+                .find("StaticSolver.newton_iterations: is set on the linked NewtonRaphsonSolver 'n'; set it there"),
+            std::string::npos);
 }
 
 // A node resting on a PlaneForceField (held in x and y: the plane gives no stiffness along it)

@@ -218,6 +218,21 @@ TEST(MeshWrite, VtuRoundTripIsExact) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);  // no temporary left
 }
 
+// SOFA's meshes include VTK XML grids saved as .vtk (its loader looks at the content): one is read
+// as the .vtu it is.
+TEST(MeshRead, XmlGridUnderTheVtkExtension) {
+  const TempFolder dir;
+  Eigen::Matrix3Xd points(3, 4);
+  points << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, 1);
+  tets << 0, 1, 2, 3;
+  const std::string path = (dir / "grid.vtk").string();
+  viscera::io::writeVtu(path, points, tets, {}, {});
+  const VolumeMesh back = viscera::io::readVolumeMesh(path);
+  EXPECT_TRUE(back.points == points);
+  EXPECT_TRUE(back.tets == tets);
+}
+
 TEST(MeshWrite, VtuWithoutCellsOrPoints) {
   const TempFolder dir;
   Eigen::Matrix3Xd points(3, 2);

@@ -34,9 +34,9 @@ TEST(VisualCli, ComponentsListTheVisualModelAndMappings) {
   EXPECT_NE(ogl.out.find("scale3d (real list, default \"1 1 1\"): scale factors of the vertices, applied first (SOFA's scale"), std::string::npos) << ogl;
   // No longer in the accepted-and-ignored list.
   const RunResult all = runViscera({"components"});
-  const std::string ignored = all.out.substr(all.out.find("Accepted and ignored:"));
-  EXPECT_EQ(ignored.find("OglModel"), std::string::npos) << ignored;
-  EXPECT_EQ(ignored.find("VisualModel"), std::string::npos) << ignored;
+  const std::string ignored = all.out.substr(all.out.find("Accepted and ignored:")) + " ";
+  EXPECT_EQ(ignored.find(" OglModel "), std::string::npos) << ignored;
+  EXPECT_EQ(ignored.find(" VisualModel "), std::string::npos) << ignored;
 }
 
 TEST(VisualCli, MissingSurfaceFileExitsWithTwoAndWritesNothing) {

@@ -421,3 +421,40 @@ TEST(VisualSceneErrors, TrianglesOutOfRange) {
 }
 
 }  // namespace
+
+// SOFA's exporter form on the body: pointsDataFields="dofs.position dofs.rest_position" adds those
+// arrays (exact to float64), and a file name with SOFA's .vtk extension names a .vtu series.
+TEST(VolumeExport, SofaPointFieldsAndFileName) {
+  TempDir dir;
+  std::string text = sceneWith("");
+  const std::string exporter =
+      R"(<VTKExporter filename="body.vtk" pointsDataFields="dofs.position dofs.rest_position" compress="false" precision="float64"/>)";
+  text.replace(text.find("<Node name=\"Visual\">"), 0, exporter);
+  SceneRun run(dir, text);
+  ASSERT_EQ(run.error, "");
+  run.steps(2);
+  pugi::xml_document doc;
+  ASSERT_TRUE(doc.load_file((fs::path(dir / "out") / "body_000002.vtu").c_str()));
+  const pugi::xml_node pd = doc.child("VTKFile").child("UnstructuredGrid").child("Piece").child("PointData");
+  const auto& dofs = named<MechanicalObject>(run.scene->root(), "dofs");
+  const auto x = values<double>(arrayNamed(pd, "position"));
+  const auto x0 = values<double>(arrayNamed(pd, "rest_position"));
+  ASSERT_EQ(x.size(), 3u * dofs.size());
+  ASSERT_EQ(x0.size(), 3u * dofs.size());
+  const Eigen::Matrix3Xd& now = dofs.x(run.sim->state());
+  for (int i = 0; i < dofs.size(); ++i)
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(x[3 * i + a], now(a, i));
+      EXPECT_EQ(x0[3 * i + a], dofs.x0(a, i));
+    }
+  EXPECT_TRUE(arrayNamed(pd, "displacement"));  // the default fields stay
+
+  for (const auto& [fields, message] :
+       {std::pair<std::string, std::string>{"other.position", "only fields of the exported MechanicalObject 'dofs'"},
+        {"dofs.stress", "unknown field 'stress'"}}) {
+    std::string bad = sceneWith("");
+    bad.replace(bad.find("<Node name=\"Visual\">"), 0, "<VTKExporter pointsDataFields=\"" + fields + "\"/>");
+    SceneRun failed(dir, bad);
+    EXPECT_NE(failed.error.find("VTKExporter.pointsDataFields: '" + fields + "': " + message), std::string::npos) << failed.error;
+  }
+}
