@@ -73,7 +73,18 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
     if (rank == 3) fixed_.push_back(node);
     else partial_.push_back({node, P});
   }
-  if (!hasMass) throw owner.error("no mass acts on MechanicalObject '" + state_->name() + "' (add UniformMass, DiagonalMass or MeshMatrixMass)");
+  if (!hasMass) {
+    if (!forces_.empty())
+      throw owner.error("no mass acts on MechanicalObject '" + state_->name() + "' (add UniformMass, DiagonalMass or MeshMatrixMass)");
+    // Neither mass nor force: SOFA's solve leaves such a state where it is. Its nodes are held
+    // (a unit mass keeps the system regular; gravity on it is held too).
+    owner.scene().addNote(state_->loc().str() + ": note: nothing acts on MechanicalObject '" + state_->name() +
+                          "' (no mass, no force field): it stays where it is");
+    mass_.setOnes();
+    diagonalMass_.setOnes();
+    fixed_.resize(static_cast<size_t>(n));
+    for (int i = 0; i < n; ++i) fixed_[static_cast<size_t>(i)] = i;
+  }
   std::sort(fixed_.begin(), fixed_.end());
   fixed_.erase(std::unique(fixed_.begin(), fixed_.end()), fixed_.end());
   // A fixed node needs no projector.

@@ -113,8 +113,9 @@ class PointMapping : public Component, public Mapping {
     if (attrs_.isSet("input")) {
       const LinkTarget t = linkTarget(*this, "input");
       if (t.node) {
-        m = t.node->find<MechanicalObject>();
-        if (!m) throw error("input", "node " + t.node->path() + " has no MechanicalObject (Vec3d)");
+        // A node stands for its state, its own or, as SOFA's context lookup, the nearest above.
+        m = t.node->findInContext<MechanicalObject>();
+        if (!m) throw error("input", "node " + t.node->path() + " has no MechanicalObject (Vec3d) in it or above");
       } else {
         m = dynamic_cast<MechanicalObject*>(t.component);
         if (!m)

@@ -124,6 +124,83 @@ class DirectionalConstraint : public Component, public ProjectiveConstraint {
   std::vector<std::pair<int, Eigen::Vector3d>> held_;
 };
 
+// SOFA's projections onto a point, a line or a plane (PointProjectiveConstraint,
+// LineProjectiveConstraint, PlaneProjectiveConstraint): the nodes keep only the freedom the
+// shape leaves them in the solve (none, along the line, in the plane), and after each solve their
+// positions and velocities are projected onto it, as SOFA projects them.
+class ShapeProjection : public Component, public ProjectiveConstraint, public Correction {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  const std::vector<int>& fixedNodes() const override { return kind_ == Kind::Point ? nodes_ : none_; }
+  const std::vector<std::pair<int, Eigen::Vector3d>>& heldDirections() const override { return held_; }
+  void init() override {
+    state_ = &contextState(*this);
+    const int n = state_->size();
+    kind_ = typeName() == "PointProjectiveConstraint" ? Kind::Point
+            : typeName() == "LineProjectiveConstraint" ? Kind::Line
+                                                       : Kind::Plane;
+    if (kind_ == Kind::Point && attrs_.boolean("fixAll")) {
+      for (int i = 0; i < n; ++i) nodes_.push_back(i);
+    } else {
+      nodes_ = linkedInts("indices");
+    }
+    for (int i : nodes_)
+      if (i < 0 || i >= n)
+        throw error("indices", "node " + std::to_string(i) + " is out of range (the MechanicalObject has " + std::to_string(n) + " nodes)");
+    auto vec = [&](const char* name) {
+      const auto& v = attrs_.reals(name);
+      return Eigen::Vector3d(v[0], v[1], v[2]);
+    };
+    if (kind_ == Kind::Point) {
+      origin_ = vec("point");
+      return;
+    }
+    origin_ = vec("origin");
+    const char* dirName = kind_ == Kind::Line ? "direction" : "normal";
+    const Eigen::Vector3d d = vec(dirName);
+    if (!(d.norm() > 0)) throw error(dirName, "must not be zero");
+    axis_ = d.normalized();
+    // The held directions: the plane's normal, or the two directions across the line.
+    std::vector<Eigen::Vector3d> across;
+    if (kind_ == Kind::Plane) {
+      across.push_back(axis_);
+    } else {
+      const Eigen::Vector3d a = axis_.unitOrthogonal();
+      across = {a, axis_.cross(a)};
+    }
+    for (int i : nodes_)
+      for (const auto& u : across) held_.push_back({i, u});
+  }
+  void correct(State& s, double, int) const override {
+    MechanicalObject::Live& l = state_->live(s);
+    for (int i : nodes_) {
+      switch (kind_) {
+        case Kind::Point:
+          l.x.col(i) = origin_;
+          l.v.col(i).setZero();
+          break;
+        case Kind::Line:
+          l.x.col(i) = origin_ + axis_ * axis_.dot(l.x.col(i) - origin_);
+          l.v.col(i) = axis_ * axis_.dot(l.v.col(i));
+          break;
+        case Kind::Plane:
+          l.x.col(i) -= axis_ * axis_.dot(l.x.col(i) - origin_);
+          l.v.col(i) -= axis_ * axis_.dot(l.v.col(i));
+          break;
+      }
+    }
+  }
+
+ private:
+  enum class Kind { Point, Line, Plane };
+  Kind kind_ = Kind::Plane;
+  MechanicalObject* state_ = nullptr;
+  std::vector<int> nodes_, none_;
+  std::vector<std::pair<int, Eigen::Vector3d>> held_;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero(), axis_ = Eigen::Vector3d::UnitX();
+};
+
 // FixedConstraint or PartialFixedProjectiveConstraint on a Rigid3d body: holds the chosen velocity
 // components (world x y z, then rotation about x y z) of an integrated body at zero.
 class RigidHold : public Component {
@@ -161,15 +238,88 @@ class BoxROI : public Component {
     indices_ = pointsInBoxes(X, attrs_.reals("box"));
     if (indices_.empty() && attrs_.boolean("strict"))
       throw error("box", "selects no point (set strict=\"false\" to allow an empty selection)");
+    // Triangles given: those with all three vertices inside (SOFA's strict rule), by index and
+    // by their vertices.
+    if (attrs_.isSet("triangles")) {
+      const auto t = linkedInts("triangles");
+      std::vector<char> in(static_cast<size_t>(X.cols()), 0);
+      for (int i : indices_) in[static_cast<size_t>(i)] = 1;
+      for (size_t k = 0; k + 3 <= t.size(); k += 3) {
+        bool all = true;
+        for (size_t c = k; c < k + 3; ++c) {
+          if (t[c] < 0 || t[c] >= X.cols())
+            throw error("triangles", "triangle " + std::to_string(k / 3) + " refers to point " + std::to_string(t[c]) +
+                                         ", but there are " + std::to_string(X.cols()) + " points");
+          all = all && in[static_cast<size_t>(t[c])];
+        }
+        if (!all) continue;
+        triangleIndices_.push_back(static_cast<double>(k / 3));
+        trianglesIn_.insert(trianglesIn_.end(), t.begin() + static_cast<long>(k), t.begin() + static_cast<long>(k + 3));
+      }
+    }
   }
   bool field(const std::string& name, FieldValue& out) const override {
-    if (name != "indices") return false;
-    out.values.assign(indices_.begin(), indices_.end());
+    if (name == "indices") out.values.assign(indices_.begin(), indices_.end());
+    else if (name == "triangleIndices" && attrs_.isSet("triangles")) out.values = triangleIndices_;
+    else if (name == "trianglesInROI" && attrs_.isSet("triangles")) out.values.assign(trianglesIn_.begin(), trianglesIn_.end());
+    else return false;
     return true;
   }
 
  private:
   std::vector<int> indices_;
+  std::vector<double> triangleIndices_;
+  std::vector<int> trianglesIn_;
+};
+
+// SOFA's TrianglePressureForceField: a load per unit area, a fixed vector, on chosen triangles of a
+// surface; each triangle carries pressure x its rest area, a third on each vertex.
+class TrianglePressureForceField : public Component, public ForceField {
+ public:
+  using Component::Component;
+  MechanicalObject& mstate() const override { return *state_; }
+  void init() override {
+    state_ = &contextState(*this);
+    if (!attrs_.boolean("useConstantForce"))
+      throw error("useConstantForce", "only the load on the rest areas (true) is supported");
+    FieldValue tris;
+    for (const Node* n = &node(); n && tris.values.empty(); n = n->parent())
+      for (auto it = n->components().rbegin(); it != n->components().rend(); ++it)
+        if (dynamic_cast<Topology*>(it->get())) {
+          scene().initComponent(**it);
+          if ((*it)->field("triangles", tris) && !tris.values.empty()) break;
+        }
+    if (tris.values.empty()) throw error("no topology with triangles in its node or above");
+    const auto& p = attrs_.reals("pressure");
+    const Eigen::Vector3d pressure(p[0], p[1], p[2]);
+    const int count = static_cast<int>(tris.values.size() / 3);
+    const Eigen::Matrix3Xd& X = state_->x0;
+    forces_ = Eigen::Matrix3Xd::Zero(3, X.cols());
+    for (int t : linkedInts("triangleList")) {
+      if (t < 0 || t >= count)
+        throw error("triangleList", "triangle " + std::to_string(t) + " is out of range (the surface has " +
+                                        std::to_string(count) + ")");
+      int v[3];
+      for (int k = 0; k < 3; ++k) {
+        v[k] = static_cast<int>(tris.values[static_cast<size_t>(3 * t + k)]);
+        if (v[k] < 0 || v[k] >= X.cols())
+          throw error("triangleList", "triangle " + std::to_string(t) + " refers to node " + std::to_string(v[k]) +
+                                          ", but MechanicalObject '" + state_->name() + "' has " + std::to_string(X.cols()));
+      }
+      const double area = 0.5 * (X.col(v[1]) - X.col(v[0])).cross(X.col(v[2]) - X.col(v[0])).norm();
+      for (int k = 0; k < 3; ++k) forces_.col(v[k]) += pressure * (area / 3.0);
+    }
+  }
+  void addForce(State&, const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {
+    f += forces_;
+  }
+  double potentialEnergy(const Eigen::Matrix3Xd& x) const override {
+    return -(forces_.array() * x.array()).sum();
+  }
+
+ private:
+  MechanicalObject* state_ = nullptr;
+  Eigen::Matrix3Xd forces_;  // per node, constant
 };
 
 // SOFA's PlaneForceField: a penalty half-space. A node at signed distance d = x.n - d0 < 0 gets
@@ -285,6 +435,31 @@ class ConstantForceField : public Component, public ForceField {
 }  // namespace
 
 void registerConstraints(Registry& r) {
+  for (const char* shape : {"PointProjectiveConstraint", "LineProjectiveConstraint", "PlaneProjectiveConstraint"}) {
+    const std::string name = shape;
+    ComponentSpec s;
+    s.name = name;
+    s.aliases = {"ProjectTo" + name.substr(0, name.find("Projective")) + "Constraint"};  // SOFA's older names
+    s.category = "constraint";
+    const bool point = name[1] == 'o', line = name[0] == 'L';
+    s.doc = point ? "Holds nodes at `point`: they are out of the solve, and after each solve they are put there with zero "
+                    "velocity (SOFA's projection)."
+            : line ? "Keeps nodes on the line through `origin` along `direction`: in the solve they move along it only; "
+                     "after each solve positions and velocities are projected onto it (SOFA's projection)."
+                   : "Keeps nodes in the plane through `origin` with `normal`: in the solve they move in it only; after "
+                     "each solve positions and velocities are projected onto it (SOFA's projection).";
+    s.add(AttrSpec::ints("indices").def("0").atLeast(0).linked().help("the nodes (SOFA's default: node 0)"));
+    if (point) {
+      s.add(AttrSpec::reals("point", 3).def("0 0 0").unit(Dimension::length()).help("where the nodes are held"));
+      s.add(AttrSpec::boolean("fixAll").def("false").help("hold every node"));
+    } else {
+      s.add(AttrSpec::reals("origin", 3).def("0 0 0").unit(Dimension::length()).help(line ? "a point of the line" : "a point of the plane"));
+      s.add(AttrSpec::reals(line ? "direction" : "normal", 3).req().help(line ? "the line's direction" : "the plane's normal"));
+    }
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<ShapeProjection>(c); };
+    r.add(std::move(s));
+  }
   {
     ComponentSpec s;
     s.name = "FixedConstraint";
@@ -357,6 +532,9 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points to test (default: rest positions of the node's MechanicalObject)"));
     s.add(AttrSpec::boolean("strict").def("false").help("fail if the box selects nothing"));
     s.add(AttrSpec::ints("indices").help("SOFA's output: the selection, computed from the box; a value in the scene is replaced, as in SOFA"));
+    s.add(AttrSpec::ints("triangles").multipleOf(3).atLeast(0).linked().help(
+        "triangles to select from (three point indices each): those with all vertices inside give the output fields "
+        "`triangleIndices` and `trianglesInROI`"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<BoxROI>(c); };
     r.add(std::move(s));
@@ -389,6 +567,21 @@ void registerConstraints(Registry& r) {
     s.add(AttrSpec::reals("totalForce", 3).unit(Dimension::force()).help("total force, split evenly over the nodes"));
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<ConstantForceField>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "TrianglePressureForceField";
+    s.category = "forcefield";
+    s.doc = "A load per unit area on chosen triangles of a surface (SOFA's TrianglePressureForceField): `pressure` is a "
+            "vector; each triangle carries pressure x its rest area, a third on each of its vertices, whatever the "
+            "motion. The triangles are those of the topology in its node or above (e.g. a surface filled by "
+            "Tetra2TriangleTopologicalMapping), their vertices nodes of the MechanicalObject.";
+    s.add(AttrSpec::reals("pressure", 3).def("0 0 0").unit(Dimension::pressure()).help("the load per unit area (a vector)"));
+    s.add(AttrSpec::ints("triangleList").def("").atLeast(0).linked().help("the loaded triangles (e.g. @box.triangleIndices)"));
+    s.add(AttrSpec::boolean("useConstantForce").def("true").help("the load on the rest areas (only true)"));
+    s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node or above)"));
+    s.factory = [](BuildContext& c) { return std::make_unique<TrianglePressureForceField>(c); };
     r.add(std::move(s));
   }
 }

@@ -205,3 +205,53 @@ TEST(OscillatorMovement, ANodeFollowsItsSine) {
             }).find("OscillatorProjectiveConstraint.oscillators: entry 0: node 3"),
             std::string::npos);
 }
+
+// Projections onto shapes: a free node under gravity slides in its plane (its normal coordinate
+// stays 0 and its in-plane acceleration is g's in-plane part), one on a line moves only along it,
+// and one projected onto a point sits there from the first step.
+TEST(ShapeProjection, NodesStayOnTheirPlaneLineAndPoint) {
+  auto scene = buildScene(io::parseSceneText(R"(<Node name="root" dt="0.01" gravity="1 -2 3">
+    <EulerImplicitSolver/><CGLinearSolver iterations="50" tolerance="1e-14" threshold="1e-30"/>
+    <MechanicalObject position="0 0 0  1 1 1  0 0.5 0.2"/>
+    <UniformMass vertexMass="1"/>
+    <PlaneProjectiveConstraint indices="0" origin="0 0 0" normal="0 0 2"/>
+    <LineProjectiveConstraint indices="1" origin="1 1 1" direction="0 3 0"/>
+    <PointProjectiveConstraint indices="2" point="4 5 6"/>
+  </Node>)", "shapes.xml"));
+  Simulation sim(*scene);
+  const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+  const int steps = 20;
+  for (int k = 0; k < steps; ++k) ASSERT_FALSE(sim.step());
+  const Eigen::Matrix3Xd& x = mo.x(sim.state());
+  // Implicit Euler from rest under a constant acceleration a: x = h^2 a n (n + 1) / 2.
+  const double travel = 0.01 * 0.01 * steps * (steps + 1) / 2.0;
+  EXPECT_LT((x.col(0) - travel * Eigen::Vector3d(1, -2, 0)).norm(), 1e-12);
+  EXPECT_LT((x.col(1) - (Eigen::Vector3d(1, 1, 1) + travel * Eigen::Vector3d(0, -2, 0))).norm(), 1e-12);
+  EXPECT_EQ(x.col(2), Eigen::Vector3d(4, 5, 6));
+  EXPECT_EQ(mo.v(sim.state()).col(2), Eigen::Vector3d::Zero());
+  EXPECT_NE(test_support::errorOf([] {
+              build(R"(<Node name="root"><MechanicalObject position="0 0 0"/>
+                <PlaneProjectiveConstraint indices="0" normal="0 0 0"/></Node>)");
+            }).find("PlaneProjectiveConstraint.normal: must not be zero"),
+            std::string::npos);
+}
+
+// A pressure load on the top face of a tetrahedron selected by a box: each vertex of the face
+// carries a third of pressure x area, and nothing else is loaded.
+TEST(TrianglePressure, ATriangleCarriesPressureTimesAreaInThirds) {
+  auto scene = build(R"(<Node name="root" gravity="0 0 0">
+    <MechanicalObject name="dofs" position="0 0 0  2 0 1  0 2 1  2 2 1"/>
+    <TriangleSetTopologyContainer name="surface" triangles="0 1 2  1 3 2"/>
+    <BoxROI name="top" box="-1 -1 0.5  3 3 1.5" triangles="@surface.triangles"/>
+    <TrianglePressureForceField triangleList="@top.triangleIndices" pressure="0 0 -3"/>
+  </Node>)");
+  EXPECT_EQ(indicesOf(*scene, "top"), (std::vector<int>{1, 2, 3}));
+  ForceField& ff = *scene->all<ForceField>().front();
+  State s;
+  const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+  Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 4);
+  ff.addForce(s, mo.x0, mo.x0, f);
+  // Only triangle 1 (1 3 2) is inside: area 2, so each of its vertices gets (0, 0, -3 * 2 / 3).
+  EXPECT_EQ(f.col(0), Eigen::Vector3d::Zero());
+  for (int i : {1, 2, 3}) EXPECT_LT((f.col(i) - Eigen::Vector3d(0, 0, -2)).norm(), 1e-14) << i;
+}

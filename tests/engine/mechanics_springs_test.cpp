@@ -203,3 +203,27 @@ TEST(ListedSprings, FirstOrderEulerTakesTheVelocityFromTheForce) {
   </Node>)", 4, 0);
   EXPECT_NEAR(x.y(), 4 * 0.1 * -9.81, 1e-9);
 }
+
+// A solved state with neither mass nor force stays where it is (as in SOFA), with a note; one with
+// a force but no mass is an error naming the state.
+TEST(MechanicalSystem, NothingActingLeavesTheStateWhereItIs) {
+  auto scene = buildScene(io::parseSceneText(R"(<Node name="root" gravity="0 -9.81 0">
+    <EulerImplicitSolver/><CGLinearSolver iterations="10" tolerance="1e-12" threshold="1e-20"/>
+    <MechanicalObject name="dofs" position="0 0 0  1 2 3"/>
+  </Node>)", "inert.xml"));
+  Simulation sim(*scene);
+  for (int k = 0; k < 5; ++k) ASSERT_FALSE(sim.step());
+  const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+  EXPECT_EQ(mo.x(sim.state()), mo.xInit);
+  std::string notes;
+  for (const auto& n : scene->notes()) notes += n + "\n";
+  EXPECT_NE(notes.find("inert.xml:3:5: note: nothing acts on MechanicalObject 'dofs'"), std::string::npos) << notes;
+  try {
+    auto bad = buildScene(io::parseSceneText(R"(<Node name="root"><EulerImplicitSolver/><CGLinearSolver/>
+      <MechanicalObject name="dofs" position="0 0 0  1 0 0"/><SpringForceField spring="0 1 10 0 1"/></Node>)", "bad.xml"));
+    bad->init();
+    ADD_FAILURE() << "a force without a mass was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no mass acts on MechanicalObject 'dofs'"), std::string::npos) << e.what();
+  }
+}
