@@ -14,6 +14,7 @@ void registerGeometryEngines(Registry&);
 void registerTopologies(Registry&);
 void registerTetrahedronFEM(Registry&);
 void registerHexahedronFEM(Registry&);
+void registerHyperelasticFEM(Registry&);
 void registerVTKExporter(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
@@ -41,6 +42,7 @@ void registerBuiltins(Registry& r) {
   registerTopologies(r);
   registerTetrahedronFEM(r);
   registerHexahedronFEM(r);
+  registerHyperelasticFEM(r);
   registerVTKExporter(r);
   registerLinearSolvers(r);
   registerEulerImplicit(r);

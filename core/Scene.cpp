@@ -394,4 +394,49 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
   throw fail("no component named '" + target + "'" + (bare ? " in this node or its ancestors" : " in " + node->path()));
 }
 
+const Node* linkedNode(const Node& from, const std::string& link) {
+  std::string path = !link.empty() && link[0] == '@' ? link.substr(1) : link;
+  const Node* node = &from;
+  if (!path.empty() && path[0] == '/') {
+    while (node->parent()) node = node->parent();
+    path.erase(0, 1);
+    // An absolute path may name the root node first.
+    const size_t slash = path.find('/');
+    if (path.substr(0, slash) == node->name()) path.erase(0, slash == std::string::npos ? path.size() : slash + 1);
+  }
+  size_t start = 0;
+  while (start < path.size()) {
+    size_t end = path.find('/', start);
+    if (end == std::string::npos) end = path.size();
+    const std::string part = path.substr(start, end - start);
+    start = end + 1;
+    if (part.empty() || part == ".") continue;
+    if (part == "..") {
+      node = node->parent();
+    } else {
+      const Node* next = nullptr;
+      for (const auto& child : node->children())
+        if (child->name() == part) next = child.get();
+      // As SOFA's context lookup, a leading name that is no child may name this node or one above.
+      if (!next && start - part.size() - 1 == 0 && path[0] != '/')
+        for (const Node* up = node; up && !next; up = up->parent())
+          if (up->name() == part) next = up;
+      node = next;
+    }
+    if (!node) return nullptr;
+  }
+  return node;
+}
+
+LinkTarget linkTarget(Component& c, const std::string& attr) {
+  const AttrValue& v = c.attrs().get(attr);
+  try {
+    return {&c.scene().resolve(c, v.text, v.loc, c.attrs().component() + "." + attr), nullptr};
+  } catch (const Error&) {
+    if (const Node* n = linkedNode(c.node(), v.text)) return {nullptr, n};
+    throw;
+  }
+}
+
+
 }  // namespace viscera

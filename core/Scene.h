@@ -75,6 +75,16 @@ class Scene {
   bool initialized_ = false;
 };
 
+// The node a link names, for SOFA's node links ("@..": the parent, "@.": this node,
+// "@/root/body", "@child/"); nullptr if the path does not name a node.
+const Node* linkedNode(const Node& from, const std::string& link);
+// What a link attribute names: a component or, as SOFA allows, a node.
+struct LinkTarget {
+  Component* component = nullptr;
+  const Node* node = nullptr;
+};
+LinkTarget linkTarget(Component& c, const std::string& attr);
+
 // `p` relative to `dir`, else to the first folder of `searchPath` that has it (Scene::resolvePath).
 std::string resolveDataPath(const std::string& p, const std::string& dir, const std::vector<std::string>& searchPath);
 

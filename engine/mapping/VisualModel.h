@@ -69,16 +69,6 @@ const Topology* volumeAbove(Scene& scene, const Node& from);
 // double precision. Throws the component's error otherwise.
 void checkVec3Template(const Component& c);
 
-// The node a link names, for SOFA's node links ("@..": the parent, "@.": this node,
-// "@/root/body", "@child/"); nullptr if the path does not name a node.
-const Node* linkedNode(const Node& from, const std::string& link);
-// What a mapping's link attribute names: a component or, as SOFA allows, a node.
-struct LinkTarget {
-  Component* component = nullptr;
-  const Node* node = nullptr;
-};
-LinkTarget linkTarget(Component& c, const std::string& attr);
-
 void registerVisualModel(Registry& r);
 
 }  // namespace viscera

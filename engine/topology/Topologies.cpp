@@ -115,7 +115,14 @@ class TopologicalMapping : public Component, public TopologyFiller {
   }
 };
 
-class TetrahedronSetTopologyContainer : public Component, public Topology {
+// A container a topological mapping writes tetrahedra into.
+class TetrahedraSink {
+ public:
+  virtual ~TetrahedraSink() = default;
+  virtual void fill(const TetList& t) = 0;
+};
+
+class TetrahedronSetTopologyContainer : public Component, public Topology, public TetrahedraSink {
  public:
   using Component::Component;
   void init() override {
@@ -145,7 +152,7 @@ class TetrahedronSetTopologyContainer : public Component, public Topology {
       }
     }
   }
-  void fill(const TetList& t) {
+  void fill(const TetList& t) override {
     tets_ = t;
     filled_ = true;
   }
@@ -308,10 +315,22 @@ class Hexa2TetraTopologicalMapping : public TopologicalMapping {
  public:
   using TopologicalMapping::TopologicalMapping;
   void init() override {
-    auto* in = dynamic_cast<Topology*>(linkedComponent("input"));
+    // The input: a topology, or (SOFA's "@../") a node whose topology has hexahedra.
+    Topology* in = nullptr;
+    const LinkTarget target = linkTarget(*this, "input");
+    if (target.node) {
+      for (const auto& c : target.node->components())
+        if (auto* t = dynamic_cast<Topology*>(c.get())) {
+          scene().initComponent(*c);
+          if (!t->hexahedra().empty()) in = t;
+        }
+    } else {
+      scene().initComponent(*target.component);
+      in = dynamic_cast<Topology*>(target.component);
+    }
     if (!in || in->hexahedra().empty()) throw error("input", "does not link to a topology with hexahedra");
-    auto* out = dynamic_cast<TetrahedronSetTopologyContainer*>(&output());
-    if (!out) throw error("output", "does not link to a TetrahedronSetTopologyContainer");
+    auto* out = dynamic_cast<TetrahedraSink*>(&output());
+    if (!out) throw error("output", "does not link to a TetrahedronSetTopologyContainer or MeshTopology");
     auto cells = in->gridCells();
     // SOFA uses nx = 2, ny = 1 when the input is not a grid.
     if (cells[0] == 0) cells = {2, 1, 1};
@@ -415,10 +434,23 @@ class SphereLoader : public Component {
 
 // SOFA's MeshTopology (and HexahedronSetTopologyContainer): any of points, triangles, quads,
 // tetrahedra and hexahedra, from a file, a loader or grid (`src`), or explicit lists.
-class GeneralMeshTopology : public Component, public Topology {
+class GeneralMeshTopology : public Component, public Topology, public TetrahedraSink {
  public:
   using Component::Component;
+  void fill(const TetList& t) override {
+    tets_ = t;
+    filled_ = true;
+  }
   void init() override {
+    initFillersOf(*this);  // a topological mapping may write its tetrahedra
+    if (filled_) {
+      // The mapping's tetrahedra index the nodes of the body they were split from.
+      if (attrs_.isSet("position")) {
+        const auto p = linkedReals("position");
+        points_ = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+      }
+      return;
+    }
     if (spec().find("filename") && attrs_.isSet("filename")) readFile(scene().resolvePath(attrs_.str("filename")));
     if (attrs_.isSet("src")) {
       Component* c = linkedComponent("src");
@@ -511,6 +543,7 @@ class GeneralMeshTopology : public Component, public Topology {
   HexList hexa_;
   Eigen::Matrix<int, 3, Eigen::Dynamic> tris_;
   Eigen::Matrix<int, 4, Eigen::Dynamic> quads_;
+  bool filled_ = false;
 };
 
 // SOFA's SparseGridTopology: the cells of a regular grid over a closed surface's bounding box that

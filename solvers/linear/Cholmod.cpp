@@ -1,6 +1,7 @@
 #include <cholmod.h>
 #include <dlfcn.h>
 
+#include <cmath>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -98,6 +99,7 @@ struct CholmodSolver::Impl {
   cholmod_factor* L = nullptr;
   std::vector<int> blockToValue;   // for each stored scalar entry: index into the block values
   std::vector<int> rowStart, cols; // pattern the analysis was made for
+  bool indefinite = false;         // negative pivots accepted (simplicial LDL^T)
 
   Impl() {
     cholmod_start(&common);
@@ -181,24 +183,40 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
   for (size_t k = 0; k < d.blockToValue.size(); ++k) Ax[k] = vals[d.blockToValue[k]];
   std::optional<std::lock_guard<std::mutex>> lock;
   if (d.L->is_super) lock.emplace(blasMutex());
-  if (!cholmod_factorize(d.A, d.L, &d.common) || d.common.status != CHOLMOD_OK) {
+  bool ok = cholmod_factorize(d.A, d.L, &d.common) && d.common.status == CHOLMOD_OK;
+  if (!ok && d.indefinite && d.common.status == CHOLMOD_NOT_POSDEF && d.L->is_super) {
+    // Supernodal factorisation is LL^T: an indefinite matrix takes the simplicial LDL^T, for good.
+    lock.reset();
+    cholmod_free_factor(&d.L, &d.common);
+    d.common.supernodal = CHOLMOD_SIMPLICIAL;
+    d.L = symbolicCache().analyse(d.A, d.rowStart, d.cols, d.common);
+    ++analyses_;
+    ok = d.L && cholmod_factorize(d.A, d.L, &d.common) && d.common.status == CHOLMOD_OK;
+  }
+  if (!ok) {
     message = d.common.status == CHOLMOD_NOT_POSDEF ? "matrix is not positive definite (CHOLMOD)"
                                                     : "CHOLMOD factorization failed";
     return false;
   }
   // CHOLMOD's supernodal factorization is LL^T and fails on an indefinite matrix; its simplicial
-  // LDL^T would not, so check D to behave the same whatever the size.
+  // LDL^T would not, so check D to behave the same whatever the size (and, where indefinite
+  // matrices are accepted, refuse only a zero pivot).
   if (!d.L->is_super) {
     const int* Lp = static_cast<const int*>(d.L->p);
     const double* Lx = static_cast<const double*>(d.L->x);
-    for (size_t j = 0; j < d.L->n; ++j)
-      if (!(Lx[Lp[j]] > 0.0)) {
-        message = "matrix is not positive definite (CHOLMOD, pivot " + std::to_string(j) + ")";
+    for (size_t j = 0; j < d.L->n; ++j) {
+      const double pivot = Lx[Lp[j]];
+      if (d.indefinite ? !(pivot != 0.0 && std::isfinite(pivot)) : !(pivot > 0.0)) {
+        message = (d.indefinite ? "matrix is singular (CHOLMOD, zero pivot " : "matrix is not positive definite (CHOLMOD, pivot ") +
+                  std::to_string(j) + ")";
         return false;
       }
+    }
   }
   return true;
 }
+
+void CholmodSolver::allowIndefinite(bool on) { impl_->indefinite = on; }
 
 void CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   serialOpenMp();

@@ -79,8 +79,11 @@ class CholmodSolver {
   CholmodSolver(const CholmodSolver&) = delete;
   CholmodSolver& operator=(const CholmodSolver&) = delete;
   // Factorizes A (symmetric; the lower triangle is read). Returns false with a message if A is
-  // not positive definite (for LL^T) or the factorization fails.
+  // not positive definite (unless allowed below), has a zero pivot, or the factorization fails.
   bool factorize(const BlockSparseMatrix& A, std::string& message);
+  // Accept symmetric indefinite matrices (LDL^T with negative pivots, as SOFA's SparseLDLSolver):
+  // a matrix the supernodal LL^T refuses is factorised again simplicially as LDL^T.
+  void allowIndefinite(bool on);
   void solve(const Eigen::VectorXd& b, Eigen::VectorXd& x);
   int analyses() const { return analyses_; }
   // Symbolic analyses are shared by every solver of the process that factorises the same

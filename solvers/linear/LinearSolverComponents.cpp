@@ -73,6 +73,8 @@ class SparseLDLSolver : public Component, public LinearSolver {
       return info;
     }
     const bool precomputed = typeName() == "PrecomputedLinearSolver";
+    // LDL^T and LU take indefinite matrices as SOFA's do; Cholesky (LL^T) refuses them.
+    chol->allowIndefinite(typeName() == "SparseLDLSolver");
     if ((!precomputed || !factorized) && !chol->factorize(*p.matrix, info.message)) {
       chol.reset();
       info.ok = false;
@@ -279,12 +281,23 @@ void registerLinearSolvers(Registry& r) {
     s.name = "SparseLDLSolver";
     // SOFA's other direct solvers give the same solution of the step's symmetric positive definite
     // system (up to round-off), so they map to this one.
-    s.aliases = {"SparseCholeskySolver", "CholmodSolver", "EigenSimplicialLDLT", "EigenSimplicialLLT", "EigenSparseLU",
-                 "EigenSparseQR", "AsyncSparseLDLSolver"};
+    s.aliases = {"EigenSimplicialLDLT", "EigenSparseLU", "EigenSparseQR", "AsyncSparseLDLSolver"};
     s.category = "solver";
     s.doc = "Direct sparse LDL^T through SuiteSparse CHOLMOD; the symbolic analysis is computed once and reused. "
-            "SOFA's EigenSimplicialLDLT/LLT, EigenSparseLU/QR and AsyncSparseLDLSolver solve the same symmetric "
-            "positive definite system and map to it.";
+            "SOFA's EigenSimplicialLDLT, EigenSparseLU/QR and AsyncSparseLDLSolver solve the same symmetric system "
+            "and map to it. An indefinite system (an inverted hyperelastic body) is factorised as LDL^T with negative "
+            "pivots, as SOFA's is; only a zero pivot fails.";
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.factory = [](BuildContext& c) { return std::make_unique<SparseLDLSolver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "SparseCholeskySolver";
+    s.aliases = {"CholmodSolver", "EigenSimplicialLLT"};
+    s.category = "solver";
+    s.doc = "Direct sparse Cholesky (LL^T) through SuiteSparse CHOLMOD, as SparseLDLSolver, but a system that is not "
+            "positive definite fails the step, as SOFA's LL^T solvers do.";
     s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseLDLSolver>(c); };
     r.add(std::move(s));
