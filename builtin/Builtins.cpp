@@ -20,6 +20,7 @@ void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
 void registerExplicitSolvers(Registry&);
 void registerStaticSolver(Registry&);
+void registerBDFOdeSolver(Registry&);
 void registerDrivers(Registry&);
 void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
@@ -48,6 +49,7 @@ void registerBuiltins(Registry& r) {
   registerEulerImplicit(r);
   registerExplicitSolvers(r);
   registerStaticSolver(r);
+  registerBDFOdeSolver(r);
   registerDrivers(r);
   registerCollision(r);
   registerConstraintContact(r);

@@ -66,6 +66,16 @@ class UniformMass : public LumpedMass {
     if (!attrs_.isSet("totalMass") && !attrs_.isSet("vertexMass"))
       throw error("set totalMass or vertexMass");
     m_ = Eigen::VectorXd::Constant(n, vm);
+    // SOFA's link to the mesh the mass follows through topological changes: here, a check that
+    // the mesh and the state have the same nodes.
+    if (attrs_.isSet("topology")) {
+      auto* t = dynamic_cast<Topology*>(linkedComponent("topology"));
+      if (!t) throw error("topology", "does not link to a topology");
+      scene().initComponent(*dynamic_cast<Component*>(t));
+      if (t->points().cols() > 0 && t->points().cols() != n)
+        throw error("topology", "has " + std::to_string(t->points().cols()) + " points, but MechanicalObject '" +
+                                    state_->name() + "' has " + std::to_string(n) + " nodes");
+    }
   }
 };
 
@@ -78,6 +88,7 @@ class RigidMass : public Component {
   using Component::Component;
   void init() override {
     RigidObject& body = contextRigid(*this, "mstate");
+    if (attrs_.isSet("topology")) throw error("topology", "applies to the mass of Vec3d nodes, not to a Rigid3d body");
     Eigen::Matrix3d perUnitMass = Eigen::Matrix3d::Identity();
     double mass = 0;
     bool massSet = false;
@@ -324,6 +335,7 @@ void registerMasses(Registry& r) {
     s.add(AttrSpec::real("vertexMass").above(0).unit(Dimension::mass()).help("mass of each node"));
     s.add(AttrSpec::file("filename").help("Rigid3d bodies: a SOFA .rigid file (mass, volm, inrt, center)"));
     s.add(AttrSpec::reals("inertiaMatrix").help("Rigid3d bodies: inertia per unit mass about the frame's origin, body frame, 9 numbers (default: identity)"));
+    s.add(AttrSpec::link("topology").help("SOFA's mesh of the nodes (it follows topological changes there); checked to have the state's nodes"));
     s.add(massLink());
     s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
       if (c.node().find<RigidObject>() && !c.node().find<MechanicalObject>()) return std::make_unique<RigidMass>(c);

@@ -32,8 +32,6 @@ class RegularGridTopology : public Component, public Topology {
   using Component::Component;
   void init() override {
     auto n = attrs_.ints("n");
-    const auto& lo = attrs_.reals("min");
-    const auto& hi = attrs_.reals("max");
     // Counted in 64 bits before anything is allocated: a grid's node count overflows an int long
     // before memory runs out, and memory runs out long before an int overflows.
     const long double nodes = static_cast<long double>(n[0]) * n[1] * n[2];
@@ -45,11 +43,14 @@ class RegularGridTopology : public Component, public Topology {
       throw error("n", m.str());
     }
     for (int a = 0; a < 3; ++a) n_[a] = n[a];
+    hexa_ = gridHexahedra(n_);
+    if (typeName() != "RegularGridTopology") return roundGrid();
+    const auto& lo = attrs_.reals("min");
+    const auto& hi = attrs_.reals("max");
     Eigen::Vector3d p0;
     if (attrs_.isSet("p0")) p0 = Eigen::Vector3d(attrs_.reals("p0")[0], attrs_.reals("p0")[1], attrs_.reals("p0")[2]);
     points_ = gridPoints(n_, Eigen::Vector3d(lo[0], lo[1], lo[2]), Eigen::Vector3d(hi[0], hi[1], hi[2]),
                          attrs_.isSet("p0") ? &p0 : nullptr);
-    hexa_ = gridHexahedra(n_);
     // A grid one node thick along one axis is SOFA's two-dimensional grid: its cells are quads.
     const int flat = n_[0] == 1 ? 0 : n_[1] == 1 ? 1 : n_[2] == 1 ? 2 : -1;
     if (flat >= 0 && n_[(flat + 1) % 3] > 1 && n_[(flat + 2) % 3] > 1) {
@@ -81,6 +82,38 @@ class RegularGridTopology : public Component, public Topology {
   std::array<int, 3> gridCells() const override {
     return {std::max(n_[0] - 1, 1), std::max(n_[1] - 1, 1), std::max(n_[2] - 1, 1)};
   }
+
+ private:
+  // SOFA's CylinderGridTopology and SphereGridTopology: the grid's square cross-section (or cube)
+  // of half-width r pushed onto the circle (sphere) through its centre, each point scaled by
+  // max(|p_i|) / |p|; the cylinder's third index runs along the axis over its length.
+  void roundGrid() {
+    const bool sphere = typeName() == "SphereGridTopology";
+    for (int a = 0; a < (sphere ? 3 : 2); ++a)
+      if (n_[a] < 2) throw error("n", "needs at least 2 nodes across (axis " + std::to_string(a) + ")");
+    const auto& ax = attrs_.reals("axis");
+    Eigen::Vector3d z(ax[0], ax[1], ax[2]);
+    if (!(z.norm() > 0)) throw error("axis", "must not be zero");
+    z.normalize();
+    Eigen::Vector3d x = (z - Eigen::Vector3d::UnitX()).norm() < 1e-6 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+    const Eigen::Vector3d y = z.cross(x).normalized();
+    x = y.cross(z).normalized();
+    const double r = attrs_.real("radius");
+    const auto& c = attrs_.reals("center");
+    const Eigen::Vector3d centre(c[0], c[1], c[2]);
+    points_.resize(3, static_cast<Eigen::Index>(n_[0]) * n_[1] * n_[2]);
+    for (int k = 0; k < n_[2]; ++k)
+      for (int j = 0; j < n_[1]; ++j)
+        for (int i = 0; i < n_[0]; ++i) {
+          Eigen::Vector3d p(i * 2 * r / (n_[0] - 1) - r, j * 2 * r / (n_[1] - 1) - r, 0);
+          if (sphere) p.z() = k * 2 * r / (n_[2] - 1) - r;
+          if (p.norm() > 1e-7) p *= p.cwiseAbs().maxCoeff() / p.norm();
+          if (!sphere && n_[2] > 1) p.z() = k * attrs_.real("length") / (n_[2] - 1);
+          points_.col(i + n_[0] * (j + n_[1] * k)) = centre + x * p.x() + y * p.y() + z * p.z();
+        }
+  }
+
+ public:
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
     else if (name == "quads" && !quads_.empty()) out.values.assign(quads_.begin(), quads_.end());
@@ -723,6 +756,24 @@ void registerTopologies(Registry& r) {
         "the first node, in place of `min` (SOFA's p0: the grid keeps the spacing of [min, max] and starts here)"));
     s.add(AttrSpec::link("position").help(
         "SOFA's link to the positions of the node's MechanicalObject (\"@dofs.position\"), which then takes the grid's"));
+    s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };
+    r.add(std::move(s));
+  }
+  for (const bool sphere : {false, true}) {
+    ComponentSpec s;
+    s.name = sphere ? "SphereGridTopology" : "CylinderGridTopology";
+    s.category = "topology";
+    s.doc = sphere ? "SOFA's sphere grid: a grid of n[0] x n[1] x n[2] nodes whose cube of half-width `radius` is pushed "
+                     "onto the ball about `center` (each point scaled by its largest coordinate over its length), and its "
+                     "hexahedra. `axis` is the grid's third direction."
+                   : "SOFA's cylinder grid: a grid of n[0] x n[1] x n[2] nodes whose square cross-section of half-width "
+                     "`radius` is pushed onto the disc (each point scaled by its largest coordinate over its length), the "
+                     "third index running along `axis` over `length` from `center`, and its hexahedra.";
+    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(1).help("nodes per direction (at most 10 million in all)"));
+    s.add(AttrSpec::reals("center", 3).def("0 0 0").unit(Dimension::length()).help(sphere ? "the centre" : "the centre of the first disc"));
+    s.add(AttrSpec::reals("axis", 3).def("0 0 1").help(sphere ? "the grid's third direction" : "the cylinder's axis"));
+    s.add(AttrSpec::real("radius").def("1").above(0).unit(Dimension::length()).help("the radius"));
+    if (!sphere) s.add(AttrSpec::real("length").def("1").above(0).unit(Dimension::length()).help("the length along the axis"));
     s.factory = [](BuildContext& c) { return std::make_unique<RegularGridTopology>(c); };
     r.add(std::move(s));
   }

@@ -10,5 +10,19 @@ namespace viscera {
 // The linear solver in `c`'s node; a clear error if there is none.
 LinearSolver* findLinearSolver(Component& c);
 
+// The Newton iteration settings of SOFA's NewtonRaphsonSolver component (StaticSolver and
+// BDFOdeSolver read them): stop at the first criterion met; a step shrinks by lineSearchFactor
+// until the residual falls, at most lineSearch trials.
+struct NewtonSettings {
+  int iterations = 1;
+  double absResidual = 1e-5, relInitial = 1e-5, relSuccessive = 1e-5;
+  double absCorrection = 0, relCorrection = 0;
+  int lineSearch = 5;
+  double lineSearchFactor = 0.5;
+};
+NewtonSettings newtonSettings(const Component& newtonRaphsonSolver);
+// The NewtonRaphsonSolver in `c`'s node, or nullptr.
+const Component* findNewtonRaphsonSolver(const Component& c);
+
 
 }  // namespace viscera

@@ -61,15 +61,15 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
                               "relative_residual_tolerance_threshold", "absolute_correction_tolerance_threshold"})
         if (attrs_.isSet(own))
           throw error(own, "is set on the linked NewtonRaphsonSolver '" + newton->name() + "'; set it there");
-      const Attributes& n = newton->attrs();
-      iterations_ = static_cast<int>(n.integer("maxNbIterationsNewton"));
-      absRes_ = n.real("absoluteResidualStoppingThreshold");
-      relRes_ = n.real("relativeInitialStoppingThreshold");
-      relSuccessive_ = n.real("relativeSuccessiveStoppingThreshold");
-      absCorr_ = n.real("absoluteEstimateDifferenceThreshold");
-      relCorr_ = n.real("relativeEstimateDifferenceThreshold");
-      lineSearch_ = static_cast<int>(n.integer("maxNbIterationsLineSearch"));
-      lineSearchFactor_ = n.real("lineSearchCoefficient");
+      const NewtonSettings n = newtonSettings(*newton);
+      iterations_ = n.iterations;
+      absRes_ = n.absResidual;
+      relRes_ = n.relInitial;
+      relSuccessive_ = n.relSuccessive;
+      absCorr_ = n.absCorrection;
+      relCorr_ = n.relCorrection;
+      lineSearch_ = n.lineSearch;
+      lineSearchFactor_ = n.lineSearchFactor;
     }
     // SOFA's newer form solves with the node's linear solver and SOFA's stiffness, as SOFA does.
     exact_ = attrs_.isSet("exactTangent") ? attrs_.boolean("exactTangent") : !attrs_.isSet("newtonSolver");
@@ -200,20 +200,41 @@ class NewtonRaphsonSettings : public Component {
   using Component::Component;
   void init() override {
     for (const auto& c : node().components())
-      if (c->typeName() == "StaticSolver" && c->attrs().isSet("newtonSolver")) return;
+      if ((c->typeName() == "StaticSolver" && c->attrs().isSet("newtonSolver")) || c->typeName() == "BDFOdeSolver") return;
     throw error("is used by a StaticSolver that links to it (StaticSolver newtonSolver=\"@" + name() +
-                "\") in its node; there is none");
+                "\") or a BDFOdeSolver in its node; there is neither");
   }
 };
 
 }  // namespace
+
+NewtonSettings newtonSettings(const Component& newton) {
+  const Attributes& n = newton.attrs();
+  NewtonSettings s;
+  s.iterations = static_cast<int>(n.integer("maxNbIterationsNewton"));
+  s.absResidual = n.real("absoluteResidualStoppingThreshold");
+  s.relInitial = n.real("relativeInitialStoppingThreshold");
+  s.relSuccessive = n.real("relativeSuccessiveStoppingThreshold");
+  s.absCorrection = n.real("absoluteEstimateDifferenceThreshold");
+  s.relCorrection = n.real("relativeEstimateDifferenceThreshold");
+  s.lineSearch = static_cast<int>(n.integer("maxNbIterationsLineSearch"));
+  s.lineSearchFactor = n.real("lineSearchCoefficient");
+  return s;
+}
+
+const Component* findNewtonRaphsonSolver(const Component& c) {
+  for (const auto& other : c.node().components())
+    if (other->typeName() == "NewtonRaphsonSolver") return other.get();
+  return nullptr;
+}
 
 void registerStaticSolver(Registry& r) {
   {
     ComponentSpec s;
     s.name = "NewtonRaphsonSolver";
     s.category = "solver";
-    s.doc = "SOFA's Newton-Raphson settings for a StaticSolver in its node that links to it (newtonSolver=\"@name\"). "
+    s.doc = "SOFA's Newton-Raphson settings for a StaticSolver in its node that links to it (newtonSolver=\"@name\"), "
+            "or for the BDFOdeSolver in its node. "
             "Each iteration solves the tangent system; it stops at the first criterion met: the residual's norm under "
             "absoluteResidualStoppingThreshold, under relativeInitialStoppingThreshold times the first one or under "
             "relativeSuccessiveStoppingThreshold times the previous one, or a correction under "

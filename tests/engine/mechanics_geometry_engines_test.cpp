@@ -111,3 +111,31 @@ TEST(GeometryEngines, EdgeSetsCarrySpringsAndPointSetsGivePositions) {
   auto points = build(R"(<PointSetTopologyContainer position="0 0 0  1 2 3"/><MechanicalObject name="dofs"/>)");
   EXPECT_EQ(fieldOf(*points, "dofs", "position"), (std::vector<double>{0, 0, 0, 1, 2, 3}));
 }
+
+// SOFA's round grids: every node of the cylinder lies within its radius of the axis and between
+// its end discs, the outer ring of nodes on the radius; every node of the sphere grid within the
+// radius, the cube's surface nodes on it.
+TEST(GeometryEngines, CylinderAndSphereGridsLieOnTheirShapes) {
+  auto s = build(R"(<Node name="c"><CylinderGridTopology name="cyl" n="5 5 4" radius="2" length="3" axis="0 1 0" center="1 0 0"/></Node>
+                    <Node name="s"><SphereGridTopology name="ball" n="5 5 5" radius="2"/></Node>)");
+  const auto c = fieldOf(*s, "cyl", "position");
+  ASSERT_EQ(c.size(), 3u * 100);
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j < 5; ++j)
+      for (int i = 0; i < 5; ++i) {
+        const size_t p = 3 * static_cast<size_t>(i + 5 * (j + 5 * k));
+        const double radial = std::hypot(c[p] - 1, c[p + 2]);
+        EXPECT_LE(radial, 2 + 1e-12);
+        if (i == 0 || j == 0 || i == 4 || j == 4) EXPECT_NEAR(radial, 2, 1e-12) << i << " " << j << " " << k;
+        EXPECT_NEAR(c[p + 1], k * 1.0, 1e-12);  // along the axis, length 3 over 3 cells
+      }
+  const auto b = fieldOf(*s, "ball", "position");
+  for (int k = 0; k < 5; ++k)
+    for (int j = 0; j < 5; ++j)
+      for (int i = 0; i < 5; ++i) {
+        const size_t p = 3 * static_cast<size_t>(i + 5 * (j + 5 * k));
+        const double r = std::sqrt(b[p] * b[p] + b[p + 1] * b[p + 1] + b[p + 2] * b[p + 2]);
+        EXPECT_LE(r, 2 + 1e-12);
+        if (i == 0 || j == 0 || k == 0 || i == 4 || j == 4 || k == 4) EXPECT_NEAR(r, 2, 1e-12);
+      }
+}

@@ -227,3 +227,31 @@ TEST(MechanicalSystem, NothingActingLeavesTheStateWhereItIs) {
     EXPECT_NE(std::string(e.what()).find("no mass acts on MechanicalObject 'dofs'"), std::string::npos) << e.what();
   }
 }
+
+// BDFOdeSolver on a mass on a spring (omega = 10 rad/s), against x(t) = L + A cos(omega t): halving
+// the step divides the error at t = 0.5 s by 2^k for order k (1 and 2; order 2 starts with one
+// first-order step, which keeps its second order).
+TEST(BDFOdeSolver, ConvergesAtItsOrderOnAnOscillator) {
+  auto errorAt = [](int order, double dt) {
+    const int steps = static_cast<int>(std::lround(0.5 / dt));
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root" gravity="0 0 0" dt=")" + std::to_string(dt) + R"(">
+      <BDFOdeSolver order=")" + std::to_string(order) + R"("/>
+      <NewtonRaphsonSolver maxNbIterationsNewton="5" absoluteResidualStoppingThreshold="1e-13"
+                           relativeInitialStoppingThreshold="0" relativeSuccessiveStoppingThreshold="0"/>
+      <SparseLDLSolver/>
+      <MechanicalObject position="0 0 0  1.1 0 0"/>
+      <UniformMass vertexMass="1"/>
+      <FixedConstraint indices="0"/>
+      <SpringForceField spring="0 1 100 0 1"/>
+    </Node>)", "bdf.xml"));
+    Simulation sim(*scene);
+    for (int k = 0; k < steps; ++k) EXPECT_FALSE(sim.step());
+    const double x = scene->all<MechanicalObject>().front()->x(sim.state())(0, 1);
+    return std::abs(x - (1 + 0.1 * std::cos(10 * 0.5)));
+  };
+  for (int order : {1, 2}) {
+    const double coarse = errorAt(order, 0.002), fine = errorAt(order, 0.001);
+    const double ratio = coarse / fine;
+    EXPECT_NEAR(ratio, std::pow(2.0, order), 0.25 * std::pow(2.0, order)) << "order " << order << ": " << coarse << " -> " << fine;
+  }
+}
