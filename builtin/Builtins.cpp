@@ -26,6 +26,7 @@ void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
 void registerMappings(Registry&);
 void registerRigidMapping(Registry&);
+void registerRigidForces(Registry&);
 void registerObservation(Registry&);
 void registerRobotDrivers(Registry&);
 void registerForceDrivers(Registry&);
@@ -55,6 +56,7 @@ void registerBuiltins(Registry& r) {
   registerConstraintContact(r);
   registerMappings(r);
   registerRigidMapping(r);
+  registerRigidForces(r);
   registerObservation(r);
   registerRobotDrivers(r);
   registerForceDrivers(r);

@@ -60,7 +60,7 @@ bool isCosmeticAttribute(const std::string& name) {
                                 "computeEdgeList", "computePointList", "isVisible",
                                 // SOFA: OpenGL blending of a visual model
                                 "blendEquation", "sourceBlendingFactor", "destinationBlendingFactor", "sfactor",
-                                "dfactor", "primitiveType", "alphaBlend", "depthTest", "writeZTransparent",
+                                "dfactor", "primitiveType", "alphaBlend", "depthTest", "writeZTransparent", "springColor",
                                 // SOFA: assemble the element matrices into one global matrix (same forces)
                                 "assembling"};
   for (const char* e : exact)

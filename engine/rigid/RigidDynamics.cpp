@@ -28,6 +28,10 @@ std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& s
     scene.initComponent(*m);
     if (&m->body() == body) r->mappings_.push_back(m);
   }
+  for (RigidForce* f : scene.all<RigidForce>()) {
+    scene.initComponent(dynamic_cast<Component&>(*f));
+    if (&f->body() == body) r->forces_.push_back(f);
+  }
   const std::string who = solver.loc().str() + ": note: " + solver.typeName() + " '" + solver.name() + "' is in the node of rigid body '" + body->name() + "'";
   if (body->driven) {
     scene.addNote(who + ", which is driven, not integrated: the solver stays idle");
@@ -41,6 +45,10 @@ std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& s
     throw solver.error("rigid body '" + body->name() + "' has a prescribed velocity (LinearVelocityProjectiveConstraint) "
                        "but is " + (body->driven ? "driven" : "not integrated (no mass)") + ": the velocity would be ignored");
   // A held or driven body does not move under forces: refuse forces that would be ignored.
+  if (!r->forces_.empty())
+    throw dynamic_cast<const Component&>(*r->forces_.front())
+        .error("acts on rigid body '" + body->name() + "', which is " + (body->driven ? "driven" : "held (no mass)") +
+               ": the force would be ignored");
   for (const RigidMapping* m : r->mappings_)
     if (!m->outputForces().empty())
       throw dynamic_cast<const Component&>(*m->outputForces().front())
@@ -53,6 +61,7 @@ void RigidBodyIntegrator::wrench(State& s, Eigen::Vector3d& force, Eigen::Vector
   force = body_->mass * gravity_;
   torque.setZero();
   for (const RigidMapping* m : mappings_) m->addWrench(s, force, torque);
+  for (const RigidForce* f : forces_) f->addWrench(s, force, torque);
 }
 
 std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, int stepIndex, double rM) const {
@@ -74,6 +83,7 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     // points (contacts above all) are implicit in the body's own motion.
     Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
     for (const RigidMapping* map : mappings_) map->addStiffness(s, K);
+    for (const RigidForce* f : forces_) f->addStiffness(s, K);
     Eigen::Matrix<double, 6, 6> M = Eigen::Matrix<double, 6, 6>::Zero();
     M.topLeftCorner<3, 3>() = m * Eigen::Matrix3d::Identity();
     M.bottomRightCorner<3, 3>() = I;

@@ -4,8 +4,9 @@
 //   (1 + h rM) I dw = h (T - w x I w - rM I w),   I = R I_body R^T,
 // the linearly implicit Euler step of SOFA's EulerImplicitSolver (symplectic Euler with rM = 0
 // and no stiffness); then held components are zeroed, p += h v and the orientation turns by
-// exp(h w). F and T are gravity and the forces on the body's mapped states (RigidMapping: contacts,
-// springs, constant forces) at the step start; their stiffness K, carried to the body's six
+// exp(h w). F and T are gravity, the forces on the body's mapped states (RigidMapping: contacts,
+// springs, constant forces) and those on its frame (RigidForce) at the step start; their
+// stiffness K, carried to the body's six
 // motions, makes them implicit: the matrix is (1 + h rM) M - h^2 K and the right side gains h^2 K V.
 // The gyroscopic term w x I w is explicit. A prescribed velocity
 // (LinearVelocityProjectiveConstraint) replaces the dynamics while it applies.
@@ -27,6 +28,21 @@ class RigidMapping;
 class RigidObject;
 class State;
 
+// A force on a rigid body's frame itself (SOFA's force fields on a Rigid3d state): its force and
+// torque (about the body's origin) at state s, and its stiffness over the body's six motions
+// (d(F, T) / d(translation, rotation vector)), which the implicit step takes in.
+class RigidForce {
+ public:
+  virtual ~RigidForce() = default;
+  virtual const RigidObject& body() const = 0;
+  virtual void addWrench(const State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const = 0;
+  virtual void addStiffness(const State& s, Eigen::Matrix<double, 6, 6>& K) const {}
+};
+
+// RestShapeSpringsForceField on a Rigid3d body (RigidForces.cpp), or null outside a rigid body's node.
+class BuildContext;
+std::unique_ptr<Component> makeRigidRestShapeSprings(BuildContext& c);
+
 class RigidBodyIntegrator {
  public:
   // The integrator of the rigid body in `solver`'s node, when that node holds a rigid body and no
@@ -36,7 +52,8 @@ class RigidBodyIntegrator {
 
   bool idle() const { return idle_; }
   RigidObject& body() const { return *body_; }
-  // Force and torque (about the body's origin) at state s: gravity and the mapped states' forces.
+  // Force and torque (about the body's origin) at state s: gravity, the mapped states' forces and
+  // the forces on the frame.
   void wrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const;
   // One step of size h with Rayleigh mass damping rM; a non-finite result is refused.
   std::optional<Diverged> step(State& s, double t, double h, int stepIndex, double rayleighMass) const;
@@ -46,6 +63,7 @@ class RigidBodyIntegrator {
   bool idle_ = true;
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
   std::vector<const RigidMapping*> mappings_;
+  std::vector<const RigidForce*> forces_;
 };
 
 }  // namespace viscera

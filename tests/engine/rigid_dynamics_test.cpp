@@ -196,3 +196,77 @@ TEST(RigidDynamics, RefusesWhatWouldBeIgnored) {
                 .find("Rigid3d"),
             std::string::npos);
 }
+
+// A body on rest-shape springs settles where they carry its loads: gravity sags it by m g / k,
+// and a constant torque T about z (LinearForceField) turns it by T / k_a, exactly (the angular
+// spring pulls along the rotation vector). Mass damping makes the settling quick.
+TEST(RigidForces, RestShapeSpringsCarryGravityAndATorque) {
+  auto s = build(R"(<Node name="root" dt="0.01" gravity="0 -9.81 0">
+  <Node name="body">
+    <EulerImplicitSolver rayleighMass="5"/>
+    <CGLinearSolver iterations="10"/>
+    <MechanicalObject template="Rigid3d" position="1 2 3 0 0 0 1"/>
+    <UniformMass totalMass="2"/>
+    <RestShapeSpringsForceField stiffness="100" angularStiffness="10"/>
+    <LinearForceField times="0" forces="0 0 0 0 0 3"/>
+  </Node>
+</Node>)");
+  Simulation sim(*s);
+  for (int k = 0; k < 2000; ++k) ASSERT_FALSE(sim.step());
+  const RigidObject::Live& b = body(*s).live(sim.state());
+  EXPECT_LT((b.p - Eigen::Vector3d(1, 2 - 2 * 9.81 / 100, 3)).norm(), 1e-9);
+  const Eigen::AngleAxisd turn(b.q);
+  EXPECT_NEAR(turn.angle(), 0.3, 1e-9);
+  EXPECT_LT((turn.axis() - Eigen::Vector3d::UnitZ()).norm(), 1e-9);
+}
+
+// The rest pose may be another body's; inactive directions are free: with y inactive the body
+// falls freely along y while x and z are pulled to the other body's.
+TEST(RigidForces, ExternalRestPoseAndActiveDirections) {
+  auto s = build(R"(<Node name="root" dt="0.01" gravity="0 -1 0">
+  <Node name="anchor"><MechanicalObject name="anchor" template="Rigid3d" position="0.5 0 -0.5 0 0 0 1"/></Node>
+  <Node name="body">
+    <EulerImplicitSolver rayleighMass="5"/>
+    <CGLinearSolver iterations="10"/>
+    <MechanicalObject name="frame" template="Rigid3d" position="0 0 0 0 0 0 1"/>
+    <UniformMass totalMass="1"/>
+    <RestShapeSpringsForceField stiffness="50" angularStiffness="5" external_rest_shape="@../anchor/anchor" activeDirections="1 0 1 1 1 1 1"/>
+  </Node>
+</Node>)");
+  Simulation sim(*s);
+  for (int k = 0; k < 1000; ++k) ASSERT_FALSE(sim.step());
+  const RigidObject* frame = nullptr;
+  for (RigidObject* r : s->all<RigidObject>())
+    if (r->name() == "frame") frame = r;
+  ASSERT_TRUE(frame);
+  const RigidObject::Live& b = frame->live(sim.state());
+  EXPECT_NEAR(b.p.x(), 0.5, 1e-9);
+  EXPECT_NEAR(b.p.z(), -0.5, 1e-9);
+  // Along y, mass damping gives the terminal velocity g / rM.
+  EXPECT_NEAR(b.v.y(), -1.0 / 5, 1e-6);
+  EXPECT_NE(errorOf(R"(<Node name="root"><Node name="b"><MechanicalObject template="Rigid3d" position="0 0 0 0 0 0 1"/>
+    <UniformMass totalMass="1"/><RestShapeSpringsForceField stiffness="1" angularStiffness="1"/></Node></Node>)")
+                .find("no ODE solver in the node of rigid body"),
+            std::string::npos);
+}
+
+// LinearForceField interpolates its keys, scaled by `force`: none before the first key, the last
+// after the last; the time is the step's start.
+TEST(RigidForces, LinearForceFieldFollowsItsKeys) {
+  auto s = build(R"(<Node name="root" dt="0.5" gravity="0 0 0">
+    <MechanicalObject position="0 0 0  1 0 0"/>
+    <LinearForceField points="1" times="1 2 4" forces="2 0 0  4 0 0  0 0 6" force="0.5"/>
+  </Node>)");
+  ForceField& ff = *s->all<ForceField>().front();
+  const MechanicalObject& mo = state(*s, "MechanicalObject");
+  State st;
+  for (const auto& [t, expected] : std::vector<std::pair<double, Eigen::Vector3d>>{
+           {0.5, Eigen::Vector3d::Zero()}, {1.0, Eigen::Vector3d(1, 0, 0)}, {1.5, Eigen::Vector3d(1.5, 0, 0)},
+           {3.0, Eigen::Vector3d(1, 0, 1.5)}, {9.0, Eigen::Vector3d(0, 0, 3)}}) {
+    st.time = t;
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 2);
+    ff.addForce(st, mo.x0, mo.x0, f);
+    EXPECT_LT((f.col(1) - expected).norm(), 1e-12) << "t = " << t;
+    EXPECT_EQ(f.col(0), Eigen::Vector3d::Zero());
+  }
+}
