@@ -6,6 +6,7 @@
 // t = (ks (d - L0) + kd u.(v_b - v_a)) / d, and df_a/dx_a = -J.
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -51,10 +52,14 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
       return attrs_.isSet(kind) ? attrs_.real(kind) : attrs_.get(fallback).nums.empty() ? 0.0 : attrs_.real(fallback);
     };
     std::set<std::pair<int, int>> seen;
+    // As SOFA's mesh and grid springs, the given stiffness and damping are per unit rest length:
+    // a spring of rest length L gets k / L and d / L (a uniform bar whatever its subdivision).
     auto add = [&](int a, int b, double ks, double kd) {
       if (a == b) return;
       if (!seen.insert({std::min(a, b), std::max(a, b)}).second) return;
-      springs_.push_back({a, b, ks, kd, (X.col(b) - X.col(a)).norm()});
+      const double rest = (X.col(b) - X.col(a)).norm();
+      const double per = rest > std::numeric_limits<double>::epsilon() ? 1.0 / rest : 1.0;
+      springs_.push_back({a, b, ks * per, kd * per, rest});
     };
     Topology* tets = nullptr;
     Topology* hexa = nullptr;
@@ -226,15 +231,18 @@ void registerSprings(Registry& r) {
     s.name = name;
     s.category = "forcefield";
     s.doc = grid ? "Springs along a grid, as SOFA's: on its hexahedra the edges (lines), face diagonals (quads) and body "
-                   "diagonals (cubes), on a flat grid's quads their sides (lines) and diagonals (quads), each with its rest length. Every kind defaults to stiffness 100 and damping 5 "
+                   "diagonals (cubes), on a flat grid's quads their sides (lines) and diagonals (quads), each with its rest length L "
+                   "and, as SOFA's, the kind's stiffness and damping divided by L. Every kind defaults to stiffness 100 and damping 5 "
                    "(SOFA's); `stiffness` and `damping` set all kinds at once. Damping acts along the spring and stays "
                    "out of the implicit matrix, as in SOFA."
-                 : "Springs on the node pairs of the mesh's elements, each with its rest length, as SOFA's: on tetrahedra "
+                 : "Springs on the node pairs of the mesh's elements, each with its rest length L and, as SOFA's, the kind's "
+                   "stiffness and damping divided by L: on tetrahedra "
                    "their edges; on hexahedra the edges (lines), face diagonals (quads) and body diagonals (cubes); on quads (a flat grid) their sides (lines) and diagonals (quads); on an edge set its edges (lines). A kind "
                    "takes its own stiffness and damping when given, else `stiffness` and `damping`; a pair keeps the first "
                    "kind that lists it. Damping acts along the spring and stays out of the implicit matrix, as in SOFA.";
-    AttrSpec k = AttrSpec::real("stiffness").atLeast(0).unit(Dimension::stiffness()).help("stiffness of every kind not given its own");
-    AttrSpec d = AttrSpec::real("damping").atLeast(0).unit({0, 1, -1}).help("damping (force per speed) of every kind not given its own");
+    // Per unit rest length (each spring takes k / L, d / L): a force, and a force times a time.
+    AttrSpec k = AttrSpec::real("stiffness").atLeast(0).unit(Dimension::force()).help("stiffness per unit rest length of every kind not given its own");
+    AttrSpec d = AttrSpec::real("damping").atLeast(0).unit({1, 1, -1}).help("damping per unit rest length of every kind not given its own");
     if (grid) {
       k.def("100");
       d.def("5");
@@ -243,8 +251,8 @@ void registerSprings(Registry& r) {
     s.add(d);
     for (const char* kind : grid ? std::vector<const char*>{"lines", "quads", "cubes"}
                                  : std::vector<const char*>{"lines", "triangles", "quads", "tetras", "cubes"}) {
-      s.add(AttrSpec::real(std::string(kind) + "Stiffness").atLeast(0).unit(Dimension::stiffness()).help(std::string("stiffness of the ") + kind + "' springs"));
-      s.add(AttrSpec::real(std::string(kind) + "Damping").atLeast(0).unit({0, 1, -1}).help(std::string("damping of the ") + kind + "' springs"));
+      s.add(AttrSpec::real(std::string(kind) + "Stiffness").atLeast(0).unit(Dimension::force()).help(std::string("stiffness per unit rest length of the ") + kind + "' springs"));
+      s.add(AttrSpec::real(std::string(kind) + "Damping").atLeast(0).unit({1, 1, -1}).help(std::string("damping per unit rest length of the ") + kind + "' springs"));
     }
     s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
     s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };

@@ -255,3 +255,17 @@ TEST(BDFOdeSolver, ConvergesAtItsOrderOnAnOscillator) {
     EXPECT_NEAR(ratio, std::pow(2.0, order), 0.25 * std::pow(2.0, order)) << "order " << order << ": " << coarse << " -> " << fine;
   }
 }
+
+// SOFA's mesh springs take the given stiffness per unit rest length: a node hanging 2 below a
+// fixed one on an edge with linesStiffness k stretches it by m g L / k (a spring of k / L).
+TEST(MeshSprings, StiffnessIsPerUnitRestLength) {
+  const Eigen::Vector3d x = after(R"(<Node name="root" gravity="0 -9.81 0">
+    <StaticSolver newton_iterations="30"/>
+    <MechanicalObject position="0 0 0  0 -2 0"/>
+    <EdgeSetTopologyContainer edges="0 1"/>
+    <UniformMass vertexMass="0.5"/>
+    <FixedConstraint indices="0"/>
+    <MeshSpringForceField linesStiffness="300"/>
+  </Node>)", 1, 1);
+  EXPECT_NEAR(x.y(), -(2 + 0.5 * 9.81 * 2 / 300), 1e-10);
+}
