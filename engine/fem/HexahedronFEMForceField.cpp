@@ -276,6 +276,10 @@ void addHexahedronFEMAttributes(ComponentSpec& s) {
   s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per hexahedron"));
   s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
   s.add(AttrSpec::choice("method", {"large", "small", "polar"}).def("large").help("small | large | polar"));
+  // SOFA's switch to rebuild the element stiffness from the deformed shape; its default (false),
+  // the stiffness of the rest shape, is what is computed here.
+  s.add(AttrSpec::choice("updateStiffnessMatrix", {"false", "0"}).def("false").help(
+      "SOFA's rebuilding of the element stiffness from the deformed shape: only false (the rest shape's stiffness)"));
   s.add(AttrSpec::link("topology").help("topology with hexahedra (default: the nearest in the node or above)"));
   s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
 }

@@ -236,6 +236,8 @@ void registerVisualModel(Registry& r) {
   s.add(AttrSpec::string("color").help(drawingOnly));
   s.add(AttrSpec::string("material").help(drawingOnly));
   s.add(AttrSpec::string("texturename").help(drawingOnly));
+  s.add(AttrSpec::reals("scaleTex").help(drawingOnly));
+  s.add(AttrSpec::reals("translationTex").help(drawingOnly));
   s.add(AttrSpec::reals("normals").alias("normal").linked().help(drawingOnly));
   // SOFA draws from `vertices` when texture seams split a position into several drawn vertices.
   s.add(AttrSpec::reals("vertices").linked().help(drawingOnly));

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <sstream>
 
 #include "core/Registry.h"
@@ -596,11 +597,52 @@ class SparseGridTopology : public Component, public Topology {
     const Eigen::Vector3d lo = surface.points.rowwise().minCoeff(), hi = surface.points.rowwise().maxCoeff();
     const Eigen::Matrix3Xd grid = gridPoints(n, lo, hi);
     const HexList cells = gridHexahedra(n);
-    const std::array<int, 3> c{n[0] - 1, n[1] - 1, n[2] - 1};
+    if (typeName() == "SparseGridRamificationTopology") return ramified(surface, n, lo, hi, grid, cells);
+    const std::vector<char> kept = keptCells(surface, {n[0] - 1, n[1] - 1, n[2] - 1}, lo, hi);
+    // The kept cells' corners, numbered in grid order.
+    std::vector<int> newIndex(grid.cols(), -1);
+    for (size_t e = 0; e < cells.size(); ++e)
+      if (kept[e])
+        for (int v : cells[e]) newIndex[v] = 0;
+    int count = 0;
+    for (int& v : newIndex)
+      if (v == 0) v = count++;
+    if (count == 0) throw error("fileTopology", "the surface encloses no cell of the grid");
+    points_.resize(3, count);
+    for (Eigen::Index v = 0; v < grid.cols(); ++v)
+      if (newIndex[v] >= 0) points_.col(newIndex[v]) = grid.col(v);
+    for (size_t e = 0; e < cells.size(); ++e)
+      if (kept[e]) {
+        std::array<int, 8> h{};
+        for (int k = 0; k < 8; ++k) h[k] = newIndex[cells[e][k]];
+        hexa_.push_back(h);
+      }
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  const HexList& hexahedra() const override { return hexa_; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    if (name == "position") {
+      out.values.assign(points_.data(), points_.data() + points_.size());
+    } else if (name == "hexahedra") {
+      out.values.clear();
+      for (const auto& h : hexa_) out.values.insert(out.values.end(), h.begin(), h.end());
+    } else {
+      return false;
+    }
+    return true;
+  }
+
+ private:
+  // Which cells of a grid of c cells per axis over [lo, hi] the surface keeps: those a triangle
+  // meets (boundary) and those cut off from the grid's border by them (inside); the others are
+  // flooded from the border cells the surface does not meet.
+  static std::vector<char> keptCells(const io::SurfaceMesh& surface, const std::array<int, 3>& c, const Eigen::Vector3d& lo,
+                                     const Eigen::Vector3d& hi) {
     const Eigen::Vector3d step((hi - lo).cwiseQuotient(Eigen::Vector3d(c[0], c[1], c[2])));
     auto cellIndex = [&](int i, int j, int k) { return i + c[0] * (j + c[1] * k); };
     enum : char { Unknown, Boundary, Outside };
-    std::vector<char> type(cells.size(), Unknown);
+    std::vector<char> type(static_cast<size_t>(c[0]) * c[1] * c[2], Unknown);
     for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
       const Eigen::Vector3d v0 = surface.points.col(surface.triangles(0, t)), v1 = surface.points.col(surface.triangles(1, t)),
                             v2 = surface.points.col(surface.triangles(2, t));
@@ -617,7 +659,6 @@ class SparseGridTopology : public Component, public Topology {
             if (triangleMeetsBox(v0, v1, v2, cmin + 0.5 * step, 0.5 * step)) type[cellIndex(i, j, k)] = Boundary;
           }
     }
-    // Flood the outside from the border cells the surface does not meet.
     std::vector<int> stack;
     for (int k = 0; k < c[2]; ++k)
       for (int j = 0; j < c[1]; ++j)
@@ -639,35 +680,117 @@ class SparseGridTopology : public Component, public Topology {
         stack.push_back(nid);
       }
     }
-    // The kept cells' corners, numbered in grid order.
-    std::vector<int> newIndex(grid.cols(), -1);
-    for (size_t e = 0; e < cells.size(); ++e)
-      if (type[e] != Outside)
-        for (int v : cells[e]) newIndex[v] = 0;
-    int count = 0;
-    for (int& v : newIndex)
-      if (v == 0) v = count++;
-    if (count == 0) throw error("fileTopology", "the surface encloses no cell of the grid");
-    points_.resize(3, count);
-    for (Eigen::Index v = 0; v < grid.cols(); ++v)
-      if (newIndex[v] >= 0) points_.col(newIndex[v]) = grid.col(v);
-    for (size_t e = 0; e < cells.size(); ++e)
-      if (type[e] != Outside) {
-        std::array<int, 8> h{};
-        for (int k = 0; k < 8; ++k) h[k] = newIndex[cells[e][k]];
-        hexa_.push_back(h);
-      }
-  }
-  const Eigen::Matrix3Xd& points() const override { return points_; }
-  const TetList& tetrahedra() const override { return kNoTets; }
-  const HexList& hexahedra() const override { return hexa_; }
-  bool field(const std::string& name, FieldValue& out) const override {
-    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
-    else return false;
-    return true;
+    std::vector<char> kept(type.size());
+    for (size_t e = 0; e < type.size(); ++e) kept[e] = type[e] != Outside;
+    return kept;
   }
 
- private:
+  // SOFA's SparseGridRamificationTopology: the surface is voxelised 2^L times finer (L =
+  // nbVirtualFinerLevels); a coarse cell whose fine cells fall into several face-connected groups
+  // is one hexahedron per group, and two hexahedra of neighbouring cells share the corners of
+  // their common face, edge or corner only where their fine cells touch across it. Separate parts
+  // of the shape that pass through one cell (the prongs of a fork) so stay separate.
+  void ramified(const io::SurfaceMesh& surface, const std::array<int, 3>& n, const Eigen::Vector3d& lo,
+                const Eigen::Vector3d& hi, const Eigen::Matrix3Xd& grid, const HexList& cells) {
+    const int levels = static_cast<int>(attrs_.integer("nbVirtualFinerLevels"));
+    if (attrs_.boolean("finestConnectivity"))
+      throw error("finestConnectivity", "connectivity through the surface's triangles is not supported; set it to 0 "
+                                        "(the fine cells' faces decide)");
+    const int r = 1 << levels;
+    const std::array<int, 3> c{n[0] - 1, n[1] - 1, n[2] - 1}, f{c[0] * r, c[1] * r, c[2] * r};
+    if (static_cast<long double>(f[0]) * f[1] * f[2] > kMaxGridNodes)
+      throw error("nbVirtualFinerLevels", "makes more than " + std::to_string(kMaxGridNodes) + " fine cells");
+    const std::vector<char> fine = keptCells(surface, f, lo, hi);
+    auto fineIndex = [&](int i, int j, int k) { return i + f[0] * (j + f[1] * k); };
+    // Groups: per coarse cell, its kept fine cells by face-connected component.
+    std::vector<int> group(fine.size(), -1);  // fine cell -> group
+    std::vector<int> groupCell;                // group -> coarse cell
+    for (int K = 0; K < c[2]; ++K)
+      for (int J = 0; J < c[1]; ++J)
+        for (int I = 0; I < c[0]; ++I)
+          for (int a = 0; a < r * r * r; ++a) {
+            const int i0 = I * r + a % r, j0 = J * r + (a / r) % r, k0 = K * r + a / (r * r);
+            const int seed = fineIndex(i0, j0, k0);
+            if (!fine[seed] || group[seed] >= 0) continue;
+            const int g = static_cast<int>(groupCell.size());
+            groupCell.push_back(I + c[0] * (J + c[1] * K));
+            std::vector<std::array<int, 3>> stack{{i0, j0, k0}};
+            group[seed] = g;
+            while (!stack.empty()) {
+              const auto q = stack.back();
+              stack.pop_back();
+              for (int d = 0; d < 6; ++d) {
+                std::array<int, 3> p = q;
+                p[d / 2] += d % 2 ? 1 : -1;
+                if (p[0] < I * r || p[0] >= (I + 1) * r || p[1] < J * r || p[1] >= (J + 1) * r || p[2] < K * r || p[2] >= (K + 1) * r)
+                  continue;
+                const int id = fineIndex(p[0], p[1], p[2]);
+                if (!fine[id] || group[id] >= 0) continue;
+                group[id] = g;
+                stack.push_back(p);
+              }
+            }
+          }
+    if (groupCell.empty()) throw error("fileTopology", "the surface encloses no cell of the grid");
+    // Corner slots (group, corner) joined by union-find where fine cells of two groups touch
+    // across the face, edge or corner their coarse cells share.
+    std::vector<int> parent(groupCell.size() * 8);
+    for (size_t k = 0; k < parent.size(); ++k) parent[k] = static_cast<int>(k);
+    std::function<int(int)> root = [&](int x) { return parent[x] == x ? x : parent[x] = root(parent[x]); };
+    // The offsets of a cell's corners, as gridHexahedra numbers them.
+    static const int corner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    for (size_t a = 0; a < fine.size(); ++a) {
+      if (!fine[a]) continue;
+      const int ia = static_cast<int>(a % f[0]), ja = static_cast<int>((a / f[0]) % f[1]), ka = static_cast<int>(a / (f[0] * f[1]));
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int ib = ia + dx, jb = ja + dy, kb = ka + dz;
+            if ((dx | dy | dz) == 0 || ib < 0 || jb < 0 || kb < 0 || ib >= f[0] || jb >= f[1] || kb >= f[2]) continue;
+            const int b = fineIndex(ib, jb, kb);
+            if (!fine[b] || group[b] <= group[a]) continue;
+            const int ga = group[a], gb = group[b];
+            const int ca = groupCell[ga], cb = groupCell[gb];
+            if (ca == cb) continue;
+            // Fine cells join their coarse cells' shared face, edge or corner when they touch
+            // straight across it: their step is the coarse cells' offset.
+            const std::array<int, 3> A{ca % c[0], (ca / c[0]) % c[1], ca / (c[0] * c[1])}, B{cb % c[0], (cb / c[0]) % c[1], cb / (c[0] * c[1])};
+            if (B[0] - A[0] != dx || B[1] - A[1] != dy || B[2] - A[2] != dz) continue;
+            // The shared corners: those of A at the side of B along every axis where they differ.
+            for (int k = 0; k < 8; ++k) {
+              bool shared = true;
+              std::array<int, 3> other{};
+              for (int ax = 0; ax < 3; ++ax) {
+                const int d = B[ax] - A[ax];
+                if (d != 0 && corner[k][ax] != (d > 0 ? 1 : 0)) shared = false;
+                other[ax] = corner[k][ax] - d;
+              }
+              if (!shared) continue;
+              int kb2 = 0;
+              while (kb2 < 8 && !(corner[kb2][0] == other[0] && corner[kb2][1] == other[1] && corner[kb2][2] == other[2])) ++kb2;
+              parent[root(8 * ga + k)] = root(8 * gb + kb2);
+            }
+          }
+    }
+    // Nodes: one per class of slots, at the grid corner the slots stand for.
+    std::vector<int> node(parent.size(), -1);
+    std::vector<int> position;  // node -> grid point
+    for (size_t g = 0; g < groupCell.size(); ++g) {
+      std::array<int, 8> h{};
+      for (int k = 0; k < 8; ++k) {
+        const int rt = root(static_cast<int>(8 * g + k));
+        if (node[rt] < 0) {
+          node[rt] = static_cast<int>(position.size());
+          position.push_back(cells[static_cast<size_t>(groupCell[g])][k]);
+        }
+        h[k] = node[rt];
+      }
+      hexa_.push_back(h);
+    }
+    points_.resize(3, static_cast<Eigen::Index>(position.size()));
+    for (size_t v = 0; v < position.size(); ++v) points_.col(static_cast<Eigen::Index>(v)) = grid.col(position[v]);
+  }
+
   // Separating-axis test of a triangle against an axis-aligned box (centre, half sizes).
   static bool triangleMeetsBox(Eigen::Vector3d a, Eigen::Vector3d b, Eigen::Vector3d c, const Eigen::Vector3d& centre,
                                const Eigen::Vector3d& half) {
@@ -799,6 +922,22 @@ void registerTopologies(Registry& r) {
             "border by such cells). Nodes are the kept cells' corners, in grid order.";
     s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
+    s.factory = [](BuildContext& c) { return std::make_unique<SparseGridTopology>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "SparseGridRamificationTopology";
+    s.category = "topology";
+    s.doc = "SOFA's sparse grid that keeps a shape's separate parts apart: the surface is voxelised 2^L times finer "
+            "(L = nbVirtualFinerLevels); a cell of the n-node grid whose fine cells fall into several face-connected "
+            "groups becomes one hexahedron per group, and hexahedra of neighbouring cells share the corners of their "
+            "common face, edge or corner only where their fine cells touch straight across it. Where no cell holds "
+            "separate parts it is the SparseGridTopology of the same surface voxelised finely.";
+    s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
+    s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
+    s.add(AttrSpec::integer("nbVirtualFinerLevels").def("0").atLeast(0).atMost(6).help("how many times the cells are halved to find the parts"));
+    s.add(AttrSpec::boolean("finestConnectivity").def("false").help("SOFA's connectivity through the surface's triangles (only false: the fine cells' faces decide)"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseGridTopology>(c); };
     r.add(std::move(s));
   }

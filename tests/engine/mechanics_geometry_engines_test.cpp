@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include "builtin/Builtins.h"
@@ -138,4 +139,45 @@ TEST(GeometryEngines, CylinderAndSphereGridsLieOnTheirShapes) {
         EXPECT_LE(r, 2 + 1e-12);
         if (i == 0 || j == 0 || k == 0 || i == 4 || j == 4 || k == 4) EXPECT_NEAR(r, 2, 1e-12);
       }
+}
+
+namespace {
+
+// An OBJ of axis-aligned boxes (outward triangles), each given by its two corners.
+void writeBoxes(const std::string& path, const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>& boxes) {
+  std::ofstream out(path);
+  int base = 1;
+  for (const auto& [lo, hi] : boxes) {
+    for (int k = 0; k < 8; ++k)
+      out << "v " << (k & 1 ? hi.x() : lo.x()) << " " << (k & 2 ? hi.y() : lo.y()) << " " << (k & 4 ? hi.z() : lo.z()) << "\n";
+    static const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                 {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (const auto& t : f) out << "f " << base + t[0] << " " << base + t[1] << " " << base + t[2] << "\n";
+    base += 8;
+  }
+}
+
+}  // namespace
+
+// Two prongs in one cell of the coarse grid: the plain sparse grid glues them into one hexahedron;
+// SOFA's ramification keeps one hexahedron per prong, sharing no node. A single block is the same
+// either way.
+TEST(GeometryEngines, RamificationKeepsSeparatePartsApart) {
+  test_support::TempDir dir;
+  writeBoxes(dir / "fork.obj", {{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.2, 1, 1)},
+                                {Eigen::Vector3d(0.8, 0, 0), Eigen::Vector3d(1, 1, 1)}});
+  writeBoxes(dir / "block.obj", {{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 2, 1)}});
+  auto s = build(R"(<Node name="a"><SparseGridTopology name="plain" n="2 2 2" fileTopology="fork.obj"/></Node>
+                    <Node name="b"><SparseGridRamificationTopology name="fork" n="2 2 2" fileTopology="fork.obj" nbVirtualFinerLevels="2"/></Node>
+                    <Node name="c"><SparseGridTopology name="blockPlain" n="3 5 3" fileTopology="block.obj"/></Node>
+                    <Node name="d"><SparseGridRamificationTopology name="block" n="3 5 3" fileTopology="block.obj" nbVirtualFinerLevels="2"/></Node>)",
+                 dir / "scene.xml");
+  EXPECT_EQ(fieldOf(*s, "plain", "hexahedra").size(), 8u);
+  const auto fork = fieldOf(*s, "fork", "hexahedra");
+  ASSERT_EQ(fork.size(), 16u);
+  std::set<double> nodes(fork.begin(), fork.end());
+  EXPECT_EQ(nodes.size(), 16u);
+  EXPECT_EQ(fieldOf(*s, "fork", "position").size(), 3u * 16);
+  EXPECT_EQ(fieldOf(*s, "block", "hexahedra").size(), fieldOf(*s, "blockPlain", "hexahedra").size());
+  EXPECT_EQ(fieldOf(*s, "block", "position").size(), fieldOf(*s, "blockPlain", "position").size());
 }
