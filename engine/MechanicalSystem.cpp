@@ -39,6 +39,7 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
   diagonalMass_ = Eigen::VectorXd::Zero(n);
   bool hasMass = false;
   std::map<int, std::vector<Eigen::Vector3d>> held;
+  std::map<int, std::pair<const Component*, bool>> constrainedBy;  // node -> first constraint, whether it prescribes motion
   std::vector<Component*> comps;
   node.collect(comps);
   for (Component* c : comps) {
@@ -55,6 +56,20 @@ MechanicalSystem::MechanicalSystem(Component& owner) {
     if (auto* p = dynamic_cast<ProjectiveConstraint*>(c); p && &p->mstate() == state_) {
       fixed_.insert(fixed_.end(), p->fixedNodes().begin(), p->fixedNodes().end());
       for (const auto& [node, dir] : p->heldDirections()) held[node].push_back(dir);
+      // A prescribed motion must be alone on its nodes: another constraint would hold them
+      // against it, or move them off its path.
+      const bool sets = p->prescribesMotion();
+      std::vector<int> nodes = p->fixedNodes();
+      for (const auto& hd : p->heldDirections()) nodes.push_back(hd.first);
+      std::sort(nodes.begin(), nodes.end());
+      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+      for (int i : nodes) {
+        auto [it, first] = constrainedBy.insert({i, {c, sets}});
+        if (!first && it->second.first != c && (sets || it->second.second))
+          throw c->error("node " + std::to_string(i) + " of '" + state_->name() + "' is also held by " +
+                         it->second.first->typeName() + " '" + it->second.first->name() +
+                         "'; a node on a prescribed motion takes no other constraint");
+      }
     }
   }
   // Partly held nodes: the span of their held directions is removed from their motion; three

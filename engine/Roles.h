@@ -90,6 +90,9 @@ class ProjectiveConstraint {
     static const std::vector<std::pair<int, Eigen::Vector3d>> none;
     return none;
   }
+  // Whether it moves its nodes along a prescribed path over time (no other constraint may hold
+  // them); holding and projecting constraints compose, in scene order, as in SOFA.
+  virtual bool prescribesMotion() const { return false; }
 };
 
 // A numerical failure of a step: where, when and what.

@@ -241,6 +241,10 @@ class BoxROI : public Component {
     // Triangles given: those with all three vertices inside (SOFA's strict rule), by index and
     // by their vertices.
     if (attrs_.isSet("triangles")) {
+      // SOFA's strict="false" takes a triangle by its centre; only its default rule is here.
+      if (attrs_.isSet("strict") && !attrs_.boolean("strict"))
+        throw error("strict", "with triangles, SOFA's strict=\"false\" (a triangle by its centre) is not supported; "
+                              "triangles are taken when all three vertices are inside");
       const auto t = linkedInts("triangles");
       std::vector<char> in(static_cast<size_t>(X.cols()), 0);
       for (int i : indices_) in[static_cast<size_t>(i)] = 1;

@@ -122,13 +122,21 @@ class VolumeEngine : public Component {
     if (attrs_.boolean("update")) throw error("update", "the volume is computed once, at the start; set it to false");
     const MechanicalObject& mo = contextState(*this, "mstate");
     const Eigen::Matrix3Xd& X = mo.xInit;
+    const bool surface = typeName() == "VolumeFromTriangles";
+    // The nearest topology that has the elements measured.
     FieldValue f;
     Component* topo = nullptr;
     for (const Node* n = &node(); n && !topo; n = n->parent())
       for (auto it = n->components().rbegin(); it != n->components().rend() && !topo; ++it)
-        if (dynamic_cast<Topology*>(it->get())) topo = it->get();
-    if (!topo) throw error("no topology (mesh) in its node or above");
-    scene().initComponent(*topo);
+        if (auto* t = dynamic_cast<Topology*>(it->get())) {
+          scene().initComponent(**it);
+          FieldValue tri, quad;
+          const bool faces = ((*it)->field("triangles", tri) && !tri.values.empty()) || ((*it)->field("quads", quad) && !quad.values.empty());
+          if (surface ? faces : (t->tetrahedra().cols() > 0 || !t->hexahedra().empty())) topo = it->get();
+        }
+    if (!topo)
+      throw error(surface ? "no topology with triangles or quads in its node or above"
+                          : "no topology with tetrahedra or hexahedra in its node or above");
     auto node = [&](double v) -> Eigen::Vector3d {
       const int i = static_cast<int>(v);
       if (i < 0 || i >= X.cols())
@@ -140,21 +148,17 @@ class VolumeEngine : public Component {
       return (b - a).dot((c - a).cross(d - a)) / 6.0;
     };
     double v = 0;
-    if (typeName() == "VolumeFromTriangles") {
-      bool any = false;
+    if (surface) {
       if (topo->field("triangles", f)) {
-        any = true;
         for (size_t k = 0; k + 3 <= f.values.size(); k += 3)
           v += tet(Eigen::Vector3d::Zero(), node(f.values[k]), node(f.values[k + 1]), node(f.values[k + 2]));
       }
       if (topo->field("quads", f)) {
-        any = true;
         for (size_t k = 0; k + 4 <= f.values.size(); k += 4) {
           const Eigen::Vector3d a = node(f.values[k]), b = node(f.values[k + 1]), c = node(f.values[k + 2]), d = node(f.values[k + 3]);
           v += tet(Eigen::Vector3d::Zero(), a, b, c) + tet(Eigen::Vector3d::Zero(), a, c, d);
         }
       }
-      if (!any) throw error("the topology '" + topo->name() + "' has no triangles or quads");
     } else {
       const auto* t = dynamic_cast<Topology*>(topo);
       const TetList& tets = t->tetrahedra();
@@ -164,8 +168,6 @@ class VolumeEngine : public Component {
       static const int split[6][4] = {{0, 5, 1, 6}, {0, 1, 3, 6}, {1, 3, 6, 2}, {6, 3, 0, 7}, {6, 7, 0, 5}, {7, 5, 4, 0}};
       for (const auto& h : t->hexahedra())
         for (const auto& s : split) v += std::abs(tet(node(h[s[0]]), node(h[s[1]]), node(h[s[2]]), node(h[s[3]])));
-      if (tets.cols() == 0 && t->hexahedra().empty())
-        throw error("the topology '" + topo->name() + "' has no tetrahedra or hexahedra");
     }
     volume_ = std::abs(v);
   }

@@ -12,6 +12,7 @@
 
 #include "core/Registry.h"
 #include "core/Scene.h"
+#include "core/Text.h"
 #include "engine/mechanics/MechanicalObject.h"
 
 namespace viscera {
@@ -23,6 +24,7 @@ class MovementConstraint : public Component, public ProjectiveConstraint, public
   using Component::Component;
   MechanicalObject& mstate() const override { return *state_; }
   const std::vector<int>& fixedNodes() const override { return nodes_; }
+  bool prescribesMotion() const override { return true; }
   void init() override {
     state_ = &contextState(*this);
     nodes_ = linkedInts("indices");
@@ -44,8 +46,7 @@ class MovementConstraint : public Component, public ProjectiveConstraint, public
   // linearly from the initial ones to the final ones between the begin and end times.
   void drive(State& s, double t, double h) const override {
     const double at = t - h;
-    if (at <= begin_) return;
-    const double a = at >= end_ ? 1.0 : (at - begin_) / (end_ - begin_);
+    const double a = at <= begin_ ? 0.0 : at >= end_ ? 1.0 : (at - begin_) / (end_ - begin_);
     MechanicalObject::Live& l = state_->live(s);
     for (size_t k = 0; k < nodes_.size(); ++k) {
       const Eigen::Index c = static_cast<Eigen::Index>(k);
@@ -160,13 +161,14 @@ class Oscillator : public Component, public ProjectiveConstraint, public Correct
   using Component::Component;
   MechanicalObject& mstate() const override { return *state_; }
   const std::vector<int>& fixedNodes() const override { return nodes_; }
+  bool prescribesMotion() const override { return true; }
   void init() override {
     state_ = &contextState(*this);
     const auto& o = attrs_.reals("oscillators");
     for (size_t k = 0; k + 9 <= o.size(); k += 9) {
       const double index = o[k];
-      if (index != static_cast<int>(index) || index < 0 || index >= state_->size())
-        throw error("oscillators", "entry " + std::to_string(k / 9) + ": node " + std::to_string(index) +
+      if (!(index >= 0 && index < state_->size()) || index != std::floor(index))
+        throw error("oscillators", "entry " + std::to_string(k / 9) + ": node " + formatNumber(index) +
                                        " is not a node of the MechanicalObject (it has " + std::to_string(state_->size()) + ")");
       Wave w;
       w.node = static_cast<int>(index);

@@ -96,7 +96,8 @@ class RegularGridTopology : public Component, public Topology {
     Eigen::Vector3d z(ax[0], ax[1], ax[2]);
     if (!(z.norm() > 0)) throw error("axis", "must not be zero");
     z.normalize();
-    Eigen::Vector3d x = (z - Eigen::Vector3d::UnitX()).norm() < 1e-6 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+    // SOFA takes x across the axis, y when the axis is x (either way along it here).
+    Eigen::Vector3d x = std::abs(z.x()) > 1 - 1e-6 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
     const Eigen::Vector3d y = z.cross(x).normalized();
     x = y.cross(z).normalized();
     const double r = attrs_.real("radius");

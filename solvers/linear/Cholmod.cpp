@@ -191,11 +191,18 @@ bool CholmodSolver::factorize(const BlockSparseMatrix& M, std::string& message) 
     d.common.supernodal = CHOLMOD_SIMPLICIAL;
     d.L = symbolicCache().analyse(d.A, d.rowStart, d.cols, d.common);
     ++analyses_;
-    ok = d.L && cholmod_factorize(d.A, d.L, &d.common) && d.common.status == CHOLMOD_OK;
+    if (!d.L) {
+      d.rowStart.clear();  // the next call analyses afresh
+      message = "CHOLMOD analysis failed";
+      return false;
+    }
+    ok = cholmod_factorize(d.A, d.L, &d.common) && d.common.status == CHOLMOD_OK;
   }
   if (!ok) {
-    message = d.common.status == CHOLMOD_NOT_POSDEF ? "matrix is not positive definite (CHOLMOD)"
-                                                    : "CHOLMOD factorization failed";
+    // Simplicial LDL^T stops at a zero pivot with the same status as LL^T at a negative one.
+    message = d.common.status != CHOLMOD_NOT_POSDEF ? "CHOLMOD factorization failed"
+              : d.indefinite && !d.L->is_super   ? "matrix is singular (CHOLMOD, zero pivot)"
+                                                 : "matrix is not positive definite (CHOLMOD)";
     return false;
   }
   // CHOLMOD's supernodal factorization is LL^T and fails on an indefinite matrix; its simplicial

@@ -4,9 +4,11 @@
 // (y' = M^-1 f), the a_j and b from the derivative of the Lagrange polynomial through the time
 // samples (the classic BDF coefficients at a fixed step). The order rises from 1 as the history
 // fills. Newton on the velocity: with c = h b, x = x^ + c v and
-//   r(v) = M (v - v^) - c [f(x, v) - rM M v - rK K v],
+//   r(v) = M (v - v^) - c [f(x, v) - rM M v + rK K v]   (K = df/dx),
 //   [(1 + c rM) M - c (c + rK) K] dv = -r,
-// where x^ and v^ are -sum a_j / a_0 of the history. Fixed nodes are projected out.
+// where x^ and v^ are -sum a_j / a_0 of the history. Fixed nodes are projected out, and the
+// directions the projective constraints hold keep the state the step starts from (drivers and
+// corrections may have set it): the latest history entry is that state.
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -77,6 +79,9 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
     rK_ = attrs_.real("rayleighStiffness");
     const Component* newton = findNewtonRaphsonSolver(*this);
     if (!newton) throw error("needs a NewtonRaphsonSolver in its node (its Newton iterations solve each step)");
+    for (const auto& c : node().components())
+      if (c->typeName() == "NewtonRaphsonSolver" && c.get() != newton)
+        throw error("finds two NewtonRaphsonSolver in its node ('" + newton->name() + "', '" + c->name() + "'); keep one");
     newton_ = newtonSettings(*newton);
     sys_ = std::make_unique<MechanicalSystem>(*this);
     linear_ = findLinearSolver(*this);
@@ -91,6 +96,10 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
       l.t.push_back(t);
       l.x.push_back(s.x);
       l.v.push_back(s.v);
+    } else {
+      // What drivers, contact constraints and corrections did since the last solve counts.
+      l.x.back() = s.x;
+      l.v.back() = s.v;
     }
     // The samples: the history and the new time.
     std::vector<double> samples(l.t.begin(), l.t.end());
@@ -104,6 +113,10 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
       xHat -= a[j] * l.x[j];
       vHat -= a[j] * l.v[j];
     }
+    // Held directions stay where the step starts (their velocity is projected to zero).
+    Eigen::Matrix3Xd drift = xHat - s.x;
+    sys_->project(drift);
+    xHat = s.x + drift;
     const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
     Eigen::Matrix3Xd v = s.v;  // the initial guess: the last velocity
     sys_->project(v);
@@ -123,7 +136,7 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
       sys_->computeForce(st, x, vel, s.f);
       Eigen::Matrix3Xd damping = Eigen::Matrix3Xd::Zero(3, n);
       if (rM_ != 0) sys_->addMdx(vel, damping, rM_);
-      if (rK_ != 0) sys_->addKdx(st, vel, damping, rK_, 0.0);
+      if (rK_ != 0) sys_->addKdx(st, vel, damping, -rK_, 0.0);  // -rK K v: K = df/dx is negative
       Eigen::Matrix3Xd r = Eigen::Matrix3Xd::Zero(3, n);
       sys_->addMdx(vel - vHat, r, 1.0);
       r -= c * (s.f - damping);

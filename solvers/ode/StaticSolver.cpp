@@ -52,13 +52,15 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     absRes_ = attrs_.real("absolute_residual_tolerance_threshold");
     relRes_ = attrs_.real("relative_residual_tolerance_threshold");
     absCorr_ = attrs_.real("absolute_correction_tolerance_threshold");
+    relCorr_ = attrs_.real("relative_correction_tolerance_threshold");
     if (attrs_.isSet("newtonSolver")) {
       // SOFA's newer form: the iteration settings live in a NewtonRaphsonSolver it links to.
       Component* newton = linkedComponent("newtonSolver");
       if (!newton || newton->typeName() != "NewtonRaphsonSolver")
         throw error("newtonSolver", "does not link to a NewtonRaphsonSolver");
       for (const char* own : {"newton_iterations", "absolute_residual_tolerance_threshold",
-                              "relative_residual_tolerance_threshold", "absolute_correction_tolerance_threshold"})
+                              "relative_residual_tolerance_threshold", "absolute_correction_tolerance_threshold",
+                              "relative_correction_tolerance_threshold"})
         if (attrs_.isSet(own))
           throw error(own, "is set on the linked NewtonRaphsonSolver '" + newton->name() + "'; set it there");
       const NewtonSettings n = newtonSettings(*newton);
@@ -184,7 +186,8 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
  private:
   int iterations_ = 10;
   double absRes_ = 1e-10, relRes_ = 1e-10, absCorr_ = 1e-12;
-  double relSuccessive_ = 0, relCorr_ = 0;         // off unless a NewtonRaphsonSolver sets them
+  double relCorr_ = 1e-12;
+  double relSuccessive_ = 0;                       // off unless a NewtonRaphsonSolver sets it
   int lineSearch_ = 1;                             // trial steps per iteration (1: none)
   double lineSearchFactor_ = 0.5;
   bool exact_ = true;
@@ -200,9 +203,14 @@ class NewtonRaphsonSettings : public Component {
   using Component::Component;
   void init() override {
     for (const auto& c : node().components())
-      if ((c->typeName() == "StaticSolver" && c->attrs().isSet("newtonSolver")) || c->typeName() == "BDFOdeSolver") return;
+      if (c->typeName() == "BDFOdeSolver") return;
+    for (Component* c : scene().all<Component>())
+      if (c->typeName() == "StaticSolver" && c->attrs().isSet("newtonSolver")) {
+        const AttrValue& v = c->attrs().get("newtonSolver");
+        if (&scene().resolve(*c, v.text, v.loc, "StaticSolver.newtonSolver") == this) return;
+      }
     throw error("is used by a StaticSolver that links to it (StaticSolver newtonSolver=\"@" + name() +
-                "\") or a BDFOdeSolver in its node; there is neither");
+                "\") or by a BDFOdeSolver in its node; there is neither");
   }
 };
 
@@ -238,7 +246,8 @@ void registerStaticSolver(Registry& r) {
             "Each iteration solves the tangent system; it stops at the first criterion met: the residual's norm under "
             "absoluteResidualStoppingThreshold, under relativeInitialStoppingThreshold times the first one or under "
             "relativeSuccessiveStoppingThreshold times the previous one, or a correction under "
-            "absoluteEstimateDifferenceThreshold (relativeEstimateDifferenceThreshold times the positions' norm). With "
+            "absoluteEstimateDifferenceThreshold (relativeEstimateDifferenceThreshold times the unknown's norm: the positions "
+            "for a StaticSolver, the velocities for a BDFOdeSolver). With "
             "maxNbIterationsLineSearch > 1 a step is halved (lineSearchCoefficient) until the residual falls.";
     s.add(AttrSpec::integer("maxNbIterationsNewton").def("1").atLeast(1).help("Newton iterations per step at most"));
     s.add(AttrSpec::real("absoluteResidualStoppingThreshold").alias("absoluteResidualToleranceThreshold").def("1e-5").atLeast(0)
@@ -250,7 +259,7 @@ void registerStaticSolver(Registry& r) {
     s.add(AttrSpec::integer("maxNbIterationsLineSearch").def("5").atLeast(1).help("trial steps per iteration (1: the full step)"));
     s.add(AttrSpec::real("lineSearchCoefficient").def("0.5").above(0).below(1).help("factor a trial step shrinks by"));
     s.add(AttrSpec::boolean("warnWhenLineSearchFails").def("true").help("SOFA's message switch; accepted, no message is printed"));
-    s.add(AttrSpec::boolean("updateStateWhenDiverged").def("true").help("keep the last iterate when the iterations do not converge (the only behaviour here)"));
+    s.add(AttrSpec::choice("updateStateWhenDiverged", {"true", "1"}).def("true").help("keep the last iterate when the iterations do not converge (only true)"));
     s.factory = [](BuildContext& c) { return std::make_unique<NewtonRaphsonSettings>(c); };
     r.add(std::move(s));
   }
@@ -262,7 +271,7 @@ void registerStaticSolver(Registry& r) {
   s.add(AttrSpec::real("absolute_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| falls to this"));
   s.add(AttrSpec::real("relative_residual_tolerance_threshold").def("1e-10").atLeast(0).help("stop when ||f|| / ||f0|| falls to this"));
   s.add(AttrSpec::real("absolute_correction_tolerance_threshold").def("1e-12").atLeast(0).help("stop when ||dx|| falls to this"));
-  s.add(AttrSpec::real("relative_correction_tolerance_threshold").def("1e-12").atLeast(0).help("accepted for SOFA compatibility"));
+  s.add(AttrSpec::real("relative_correction_tolerance_threshold").def("1e-12").atLeast(0).help("stop when ||dx|| falls to this times ||x||"));
   s.add(AttrSpec::link("newtonSolver").help("a NewtonRaphsonSolver whose settings replace the four above (SOFA's newer form)"));
   s.add(AttrSpec::boolean("exactTangent").def("true").help("exact corotational tangent with sparse LU (false: the node's linear solver with SOFA's stiffness; the default with `newtonSolver`, as SOFA)"));
   s.factory = [](BuildContext& c) { return std::make_unique<StaticSolver>(c); };

@@ -75,6 +75,7 @@ TEST(GeometryEngines, TransformEnginePlacesPointsAndItsInverseUndoesIt) {
   for (size_t i = 0; i < out.size(); ++i) EXPECT_NEAR(out[i], expected[i], 1e-12) << i;
   const auto back = fieldOf(*s, "back", "output_position");
   const std::vector<double> input{1, 0, 0, 0, 1, 2};
+  ASSERT_EQ(back.size(), input.size());
   for (size_t i = 0; i < back.size(); ++i) EXPECT_NEAR(back[i], input[i], 1e-12) << i;
 }
 

@@ -270,3 +270,31 @@ TEST(MeshSprings, StiffnessIsPerUnitRestLength) {
   </Node>)", 1, 1);
   EXPECT_NEAR(x.y(), -(2 + 0.5 * 9.81 * 2 / 300), 1e-10);
 }
+
+// Rayleigh stiffness damping under BDF takes energy out: after 2 s the damped oscillator's
+// amplitude is below the undamped one's (BDF's own dissipation is in both).
+TEST(BDFOdeSolver, RayleighStiffnessDampingDampsTheOscillator) {
+  auto amplitude = [](double rK) {
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root" gravity="0 0 0" dt="0.005">
+      <BDFOdeSolver order="2" rayleighStiffness=")" + std::to_string(rK) + R"("/>
+      <NewtonRaphsonSolver maxNbIterationsNewton="5" absoluteResidualStoppingThreshold="1e-13"
+                           relativeInitialStoppingThreshold="0" relativeSuccessiveStoppingThreshold="0"/>
+      <SparseLDLSolver/>
+      <MechanicalObject position="0 0 0  1.1 0 0"/>
+      <UniformMass vertexMass="1"/>
+      <FixedConstraint indices="0"/>
+      <SpringForceField spring="0 1 100 0 1"/>
+    </Node>)", "bdf_damped.xml"));
+    Simulation sim(*scene);
+    double peak = 0;
+    for (int k = 0; k < 400; ++k) {
+      EXPECT_FALSE(sim.step());
+      if (k >= 300) peak = std::max(peak, std::abs(scene->all<MechanicalObject>().front()->x(sim.state())(0, 1) - 1));
+    }
+    return peak;
+  };
+  const double free = amplitude(0), damped = amplitude(0.02);
+  EXPECT_LT(free, 0.1);
+  EXPECT_GT(free, 0.08);               // BDF2 itself loses little over 2 s
+  EXPECT_LT(damped, 0.7 * free);       // exp(-rK w^2 t / 2) = exp(-2) ~ 0.14 of it
+}
