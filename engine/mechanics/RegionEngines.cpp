@@ -14,17 +14,19 @@ namespace viscera {
 
 namespace {
 
+// The points a region selects from: its `position` if given, else the rest positions of the
+// node's MechanicalObject, as SOFA tests them.
+Eigen::Matrix3Xd testedPoints(Component& c) {
+  if (!c.attrs().isSet("position")) return contextState(c).x0;
+  const auto p = c.linkedReals("position");
+  return Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
+}
+
 class SphereROI : public Component {
  public:
   using Component::Component;
   void init() override {
-    Eigen::Matrix3Xd X;
-    if (attrs_.isSet("position")) {
-      const auto p = linkedReals("position");
-      X = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
-    } else {
-      X = contextState(*this).x0;  // SOFA tests the rest positions
-    }
+    const Eigen::Matrix3Xd X = testedPoints(*this);
     const auto& c = attrs_.reals("centers");
     const auto& r = attrs_.reals("radii");
     if (r.size() != c.size() / 3 && r.size() != 1)
@@ -83,13 +85,7 @@ class PairBoxROI : public Component {
  public:
   using Component::Component;
   void init() override {
-    Eigen::Matrix3Xd X;
-    if (attrs_.isSet("position")) {
-      const auto p = linkedReals("position");
-      X = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
-    } else {
-      X = contextState(*this).x0;  // SOFA tests the rest positions
-    }
+    const Eigen::Matrix3Xd X = testedPoints(*this);
     auto box = [&](const char* name) {
       const auto& b = attrs_.reals(name);
       Eigen::AlignedBox3d B;

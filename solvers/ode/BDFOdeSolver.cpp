@@ -204,13 +204,7 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
       sys_->assembleStiffness(st, A, c / (c + rK_), kFact);
       sys_->addMass(A, mFact);
       sys_->constrain(A);
-      problem.matrix = &A;
-      problem.apply = [&A](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        q.resize(p.size());
-        A.multiply(p, q);
-      };
-      problem.diagonal.resize(3 * n);
-      for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();
+      useAssembled(problem, A);
     } else {
       problem.apply = [this, &st, n, mFact, kFact, c](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);

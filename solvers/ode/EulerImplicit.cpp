@@ -83,13 +83,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       else A.setZero();
       sys_->addMass(A, mFact);
       sys_->constrain(A);
-      problem.matrix = &A;
-      problem.apply = [&A](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        q.resize(p.size());
-        A.multiply(p, q);
-      };
-      problem.diagonal.resize(3 * n);
-      for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();
+      useAssembled(problem, A);
     } else {
       sys_->addKdx(st, s.v, Kv, 1.0, uScale);
       problem.apply = [this, &st, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
@@ -151,6 +145,17 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
 };
 
 }  // namespace
+
+void useAssembled(LinearProblem& problem, const BlockSparseMatrix& A) {
+  problem.matrix = &A;
+  problem.apply = [&A](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+    q.resize(p.size());
+    A.multiply(p, q);
+  };
+  const int n = A.blockRows();
+  problem.diagonal.resize(3 * n);
+  for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();
+}
 
 LinearSolver* findLinearSolver(Component& c) {
   LinearSolver* l = c.node().find<LinearSolver>();

@@ -9,6 +9,8 @@ namespace viscera {
 
 // The linear solver in `c`'s node; a clear error if there is none.
 LinearSolver* findLinearSolver(Component& c);
+// Points `problem` at the assembled matrix A: its product and its diagonal (for preconditioners).
+void useAssembled(LinearProblem& problem, const BlockSparseMatrix& A);
 
 // The Newton iteration settings of SOFA's NewtonRaphsonSolver component (StaticSolver and
 // BDFOdeSolver read them): stop at the first criterion met; a step shrinks by lineSearchFactor
