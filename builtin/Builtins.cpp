@@ -16,6 +16,7 @@ void registerTetrahedronFEM(Registry&);
 void registerHexahedronFEM(Registry&);
 void registerHyperelasticFEM(Registry&);
 void registerVTKExporter(Registry&);
+void registerSurfaceExporters(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
 void registerExplicitSolvers(Registry&);
@@ -46,6 +47,7 @@ void registerBuiltins(Registry& r) {
   registerHexahedronFEM(r);
   registerHyperelasticFEM(r);
   registerVTKExporter(r);
+  registerSurfaceExporters(r);
   registerLinearSolvers(r);
   registerEulerImplicit(r);
   registerExplicitSolvers(r);

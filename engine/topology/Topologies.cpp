@@ -179,7 +179,9 @@ class TetrahedronSetTopologyContainer : public Component, public Topology, publi
       tets_ = Eigen::Map<const TetList>(t.data(), 4, t.size() / 4);
     }
     if (tets_.cols() > 0 && points_.cols() > 0) {
-      io::VolumeMesh m{points_, tets_, {}};
+      io::VolumeMesh m;
+      m.points = points_;
+      m.tets = tets_;
       try {
         io::checkTetMesh(m, name());
       } catch (const Error& e) {
@@ -516,7 +518,9 @@ class GeneralMeshTopology : public Component, public Topology, public Tetrahedra
         for (int k = 0; k < 8; ++k) hexa_[e][k] = h(k, e);
     }
     if (points_.cols() > 0 && tets_.cols() > 0) {
-      io::VolumeMesh m{points_, tets_, {}};
+      io::VolumeMesh m;
+      m.points = points_;
+      m.tets = tets_;
       try {
         io::checkTetMesh(m, name());
       } catch (const Error& e) {

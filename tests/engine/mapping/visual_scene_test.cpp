@@ -21,6 +21,7 @@
 #include "engine/mapping/VisualModel.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
+#include "io/surface/SurfaceMesh.h"
 #include "tests/support/TempDir.h"
 
 namespace fs = std::filesystem;
@@ -457,4 +458,33 @@ TEST(VolumeExport, SofaPointFieldsAndFileName) {
     SceneRun failed(dir, bad);
     EXPECT_NE(failed.error.find("VTKExporter.pointsDataFields: '" + fields + "': " + message), std::string::npos) << failed.error;
   }
+}
+
+// SOFA's surface exporters: OBJ frames of the visual surface as it moves (read back: the vertices
+// where the model has them, to the 6 significant digits OBJ text keeps), and STL frames of a fixed
+// surface given by links.
+TEST(SurfaceExport, ObjFramesFollowTheVisualModelAndStlTakesLinkedSurfaces) {
+  TempDir dir;
+  // A closed tetrahedron surface moved with the body (its vertices are grid nodes).
+  const std::string visual = R"(<OglModel name="skin" position="0 0 2  3 0 2  0 2 2  0 0 0" triangles="0 2 1  0 1 3  1 2 3  0 3 2"/>
+      <BarycentricMapping input="@.." output="@skin"/>
+      <VisualModelOBJExporter filename="skin" exportAtBegin="true" exportEveryNumberOfSteps="2"/>
+      <STLExporter filename="fixed" exportAtEnd="true" position="@skin.position" triangle="@skin.triangles" binaryformat="false"/>)";
+  SceneRun run(dir, sceneWith(visual));
+  ASSERT_EQ(run.error, "");
+  run.steps(4);
+  const fs::path out = dir / "out";
+  for (int step : {0, 2, 4}) {
+    char name[32];
+    std::snprintf(name, sizeof name, "skin_%06d.obj", step);
+    EXPECT_TRUE(fs::exists(out / name)) << name;
+  }
+  EXPECT_FALSE(fs::exists(out / "skin_000001.obj"));
+  const auto& skin = named<VisualModel>(run.scene->root(), "skin");
+  const io::SurfaceMesh last = io::readSurface((out / "skin_000004.obj").string());
+  ASSERT_EQ(last.points.cols(), 4);
+  EXPECT_LT((last.points - skin.x(run.sim->state())).cwiseAbs().maxCoeff(), 1e-5);
+  EXPECT_GT((skin.x(run.sim->state()) - skin.x0).cwiseAbs().maxCoeff(), 1e-4);  // it moved
+  const io::SurfaceMesh fixed = io::readSurface((out / "fixed_000004.stl").string());
+  EXPECT_EQ(fixed.triangles.cols(), 4);
 }
