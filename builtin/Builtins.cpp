@@ -17,6 +17,7 @@ void registerHexahedronFEM(Registry&);
 void registerHyperelasticFEM(Registry&);
 void registerVTKExporter(Registry&);
 void registerSurfaceExporters(Registry&);
+void registerWriteState(Registry&);
 void registerLinearSolvers(Registry&);
 void registerEulerImplicit(Registry&);
 void registerExplicitSolvers(Registry&);
@@ -48,6 +49,7 @@ void registerBuiltins(Registry& r) {
   registerHyperelasticFEM(r);
   registerVTKExporter(r);
   registerSurfaceExporters(r);
+  registerWriteState(r);
   registerLinearSolvers(r);
   registerEulerImplicit(r);
   registerExplicitSolvers(r);

@@ -12,6 +12,10 @@
 #include <sstream>
 #include <string>
 
+#include "builtin/Builtins.h"
+#include "core/Scene.h"
+#include "engine/Simulation.h"
+#include "io/scene/SceneReader.h"
 #include "study/SofaSuite.h"
 #include "tests/support/ErrorOf.h"
 #include "tests/support/TempDir.h"
@@ -218,4 +222,33 @@ TEST(SofaSuite, SofasRegressionScenesThatPassStayPassing) {
     ++run;
   }
   EXPECT_EQ(run, static_cast<int>(passing.size()));
+}
+
+// WriteState writes SOFA's dump format: read back by the suite's own reader, gzip-compressed, at
+// the first time and every period after, with the falling ball where symplectic Euler puts it
+// (z = 3 - h^2 g N (N + 1) / 2, v = -h g N).
+TEST(SofaSuite, WriteStateWritesWhatTheSuiteReads) {
+  TempDir dir;
+  std::string scene = kFallScene;
+  scene.replace(scene.find("</Node>"), 7,
+                R"(<WriteState filename="ball.txt.gz" time="0.02" period="0.03" writeV="true"/></Node>)");
+  write(dir / "fall.scn", scene);
+  auto built = buildScene(io::readScene(dir / "fall.scn"));
+  built->setOutputDirectory(dir / "out");
+  {
+    Simulation sim(*built);
+    sim.begin();
+    for (int k = 0; k < 10; ++k) ASSERT_FALSE(sim.step());
+    sim.end();
+  }
+  const auto frames = study::readStateDump((fs::path(dir / "out") / "ball.txt.gz").string());
+  ASSERT_EQ(frames.size(), 3u);  // t = 0.02, 0.05, 0.08
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const int n = 2 + 3 * static_cast<int>(k);
+    EXPECT_NEAR(frames[k].t, 0.01 * n, 1e-12);
+    ASSERT_EQ(frames[k].x.size(), 3u);
+    EXPECT_NEAR(frames[k].x[2], 3 - 0.01 * 0.01 * 10 * n * (n + 1) / 2.0, 1e-12);
+    ASSERT_EQ(frames[k].v.size(), 3u);
+    EXPECT_NEAR(frames[k].v[2], -0.01 * 10 * n, 1e-12);
+  }
 }

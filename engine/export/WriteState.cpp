@@ -1,0 +1,109 @@
+// WriteState (SOFA's): the state of the node's MechanicalObject at chosen times, in SOFA's dump
+// format (io/scene/StateDump.h), which its regression references use and `viscera sofa-suite`
+// reads. The frames are kept and the file written whole at the end of the run (also after a
+// divergence, with the good frames).
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "core/Registry.h"
+#include "core/Scene.h"
+#include "engine/mechanics/MechanicalObject.h"
+#include "io/scene/StateDump.h"
+
+namespace viscera {
+
+namespace {
+
+class WriteState : public Component, public Observer {
+ public:
+  using Component::Component;
+  void init() override {
+    state_ = &contextState(*this);
+    period_ = attrs_.real("period");
+    times_ = attrs_.reals("time");
+    if (times_.empty()) throw error("time", "needs at least one time to write at");
+    for (size_t k = 1; k < times_.size(); ++k)
+      if (!(times_[k] > times_[k - 1])) throw error("time", "must increase");
+    if (period_ > 0 && times_.size() > 1) throw error("period", "goes with one start `time`, not a list");
+    if (!attrs_.boolean("writeX") && !attrs_.boolean("writeX0") && !attrs_.boolean("writeV") && !attrs_.boolean("writeF"))
+      throw error("writeX", "nothing to write: set writeX, writeX0, writeV or writeF");
+  }
+  void begin(const State& s, double t) override {
+    const std::string name = attrs_.str("filename");
+    if (scene().escapesOutputFolder(name))
+      throw error("filename", "'" + name + "' would be written outside the output folder (--out); give a name inside it");
+    path_ = scene().outputPath(name);
+    next_ = 0;
+    maybeWrite(s, t);
+  }
+  void observe(const State& s, double t, int) override { maybeWrite(s, t); }
+  void end(const State&, double, int) override { flush(); }
+  void diverged(const State&, double, int) override { flush(); }
+
+ private:
+  // The k-th time to write at: the listed times, or the first one and then every period.
+  double timeAt(size_t k) const {
+    if (period_ > 0) return times_.front() + static_cast<double>(k) * period_;
+    return k < times_.size() ? times_[k] : INFINITY;
+  }
+  void maybeWrite(const State& s, double t) {
+    // Half a step's tolerance: a time falls on the step whose end is nearest.
+    const double slack = 0.5 * scene().dt();
+    if (!(t + slack >= timeAt(next_))) return;
+    while (t + slack >= timeAt(next_)) ++next_;
+    char head[64];
+    std::snprintf(head, sizeof head, "T= %.17g\n", t);
+    text_ += head;
+    auto line = [&](const char* key, const Eigen::Matrix3Xd& m) {
+      std::ostringstream out;
+      out.precision(17);
+      out << "  " << key << "=";
+      for (Eigen::Index i = 0; i < m.size(); ++i) out << ' ' << m.data()[i];
+      text_ += out.str() + "\n";
+    };
+    if (attrs_.boolean("writeX")) line("X", state_->x(s));
+    if (attrs_.boolean("writeX0")) line("X0", state_->x0);
+    if (attrs_.boolean("writeV")) line("V", state_->v(s));
+    if (attrs_.boolean("writeF")) line("F", state_->live(s).f);
+  }
+  void flush() {
+    if (path_.empty() || written_) return;
+    std::error_code ec;
+    const std::filesystem::path dir = std::filesystem::path(path_).parent_path();
+    if (!dir.empty()) std::filesystem::create_directories(dir, ec);
+    io::writeMaybeGzip(path_, text_);
+    written_ = true;
+  }
+
+  MechanicalObject* state_ = nullptr;
+  double period_ = 0;
+  std::vector<double> times_;
+  size_t next_ = 0;
+  std::string path_, text_;
+  bool written_ = false;
+};
+
+}  // namespace
+
+void registerWriteState(Registry& r) {
+  ComponentSpec s;
+  s.name = "WriteState";
+  s.category = "output";
+  s.doc = "Writes the node's MechanicalObject at chosen times in SOFA's state dump format (T=, X=, V=, F= lines; "
+          "gzip-compressed when the name ends in .gz), in the output folder, as SOFA's WriteState: from the first "
+          "`time` every `period`, or at each listed time. The file is written whole at the end of the run.";
+  s.add(AttrSpec::string("filename").req().help("the file, in the output folder (.gz: compressed)"));
+  s.add(AttrSpec::real("period").def("0").atLeast(0).unit(Dimension::time()).help("time between writes (0: the listed times only)"));
+  s.add(AttrSpec::reals("time").def("0").unit(Dimension::time()).help("the first time to write at, or (period 0) every time to write at"));
+  s.add(AttrSpec::boolean("writeX").def("true").help("write the positions"));
+  s.add(AttrSpec::boolean("writeX0").def("false").help("write the rest positions"));
+  s.add(AttrSpec::boolean("writeV").def("false").help("write the velocities"));
+  s.add(AttrSpec::boolean("writeF").def("false").help("write the forces"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
+  s.factory = [](BuildContext& c) { return std::make_unique<WriteState>(c); };
+  r.add(std::move(s));
+}
+
+}  // namespace viscera
