@@ -23,6 +23,7 @@ void registerEulerImplicit(Registry&);
 void registerExplicitSolvers(Registry&);
 void registerStaticSolver(Registry&);
 void registerBDFOdeSolver(Registry&);
+void registerNewmarkImplicitSolver(Registry&);
 void registerDrivers(Registry&);
 void registerCollision(Registry&);
 void registerConstraintContact(Registry&);
@@ -55,6 +56,7 @@ void registerBuiltins(Registry& r) {
   registerExplicitSolvers(r);
   registerStaticSolver(r);
   registerBDFOdeSolver(r);
+  registerNewmarkImplicitSolver(r);
   registerDrivers(r);
   registerCollision(r);
   registerConstraintContact(r);

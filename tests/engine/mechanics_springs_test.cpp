@@ -298,3 +298,27 @@ TEST(BDFOdeSolver, RayleighStiffnessDampingDampsTheOscillator) {
   EXPECT_GT(free, 0.08);               // BDF2 itself loses little over 2 s
   EXPECT_LT(damped, 0.7 * free);       // exp(-rK w^2 t / 2) = exp(-2) ~ 0.14 of it
 }
+
+// Newmark's average acceleration (beta 1/4, gamma 1/2) keeps the energy of a linear undamped
+// oscillator: after 500 steps, 1/2 m v^2 + 1/2 k u^2 is its initial value (to round-off); with
+// gamma 0.6 (and beta (gamma + 1/2)^2 / 4, unconditionally stable) it loses energy.
+TEST(NewmarkImplicitSolver, AverageAccelerationKeepsTheOscillatorsEnergy) {
+  auto energyAfter = [](const std::string& gamma, const std::string& beta) {
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root" gravity="0 0 0" dt="0.01">
+      <NewmarkImplicitSolver gamma=")" + gamma + R"(" beta=")" + beta + R"("/>
+      <SparseLDLSolver/>
+      <MechanicalObject position="0 0 0  1.1 0 0"/>
+      <UniformMass vertexMass="2"/>
+      <FixedConstraint indices="0"/>
+      <SpringForceField spring="0 1 100 0 1"/>
+    </Node>)", "newmark.xml"));
+    Simulation sim(*scene);
+    for (int k = 0; k < 500; ++k) EXPECT_FALSE(sim.step());
+    const MechanicalObject& mo = *scene->all<MechanicalObject>().front();
+    const double u = mo.x(sim.state())(0, 1) - 1, v = mo.v(sim.state())(0, 1);
+    return 0.5 * 2 * v * v + 0.5 * 100 * u * u;
+  };
+  const double start = 0.5 * 100 * 0.1 * 0.1;
+  EXPECT_NEAR(energyAfter("0.5", "0.25"), start, 1e-10 * start);
+  EXPECT_LT(energyAfter("0.6", "0.3025"), 0.9 * start);
+}
