@@ -303,11 +303,13 @@ std::vector<ReferenceFrame> readStateDump(const std::string& path) {
       numbers(ls, t);
       if (t.size() != 1) throw Error(SourceLoc{path, line}, "T= needs one time");
       frames.back().t = t[0];
-    } else if (key == "X=" || key == "V=") {
+    } else if (key == "X=" || key == "V=" || key == "F=" || key == "X0=") {
       if (frames.empty()) throw Error(SourceLoc{path, line}, key + " before the first T=");
-      numbers(ls, key == "X=" ? frames.back().x : frames.back().v);
+      // Forces and rest positions (WriteState's writeF, writeX0) are read, not compared.
+      std::vector<double> unused;
+      numbers(ls, key == "X=" ? frames.back().x : key == "V=" ? frames.back().v : unused);
     } else {
-      throw Error(SourceLoc{path, line}, "expected T=, X= or V=, got '" + key.substr(0, 20) + "'");
+      throw Error(SourceLoc{path, line}, "expected T=, X=, V=, F= or X0=, got '" + key.substr(0, 20) + "'");
     }
   }
   if (frames.empty()) throw Error(SourceLoc{path}, "no T= block");

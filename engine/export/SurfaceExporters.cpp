@@ -9,6 +9,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mapping/VisualModel.h"
+#include "engine/mechanics/MechanicalObject.h"
 #include "io/surface/SurfaceMesh.h"
 
 namespace viscera {
@@ -22,7 +23,15 @@ class SurfaceExporter : public Component, public Observer {
     every_ = static_cast<int>(attrs_.integer("exportEveryNumberOfSteps"));
     stl_ = typeName() == "STLExporter";
     if (stl_ && attrs_.isSet("position")) {
-      // A fixed surface from links (a loader's points and triangles).
+      // A fixed surface from links (a loader's points and triangles): a state or a visual model
+      // moves, and is exported from beside it instead.
+      const AttrValue& link = attrs_.get("position");
+      if (link.link) {
+        Component& source = scene().resolve(*this, link.text, link.loc, "STLExporter.position");
+        if (dynamic_cast<MechanicalObject*>(&source) || dynamic_cast<VisualModel*>(&source))
+          throw error("position", "links to '" + source.name() + "', which moves; put the exporter beside that visual model "
+                                  "(without position and triangle) to export its surface as it moves");
+      }
       const auto p = linkedReals("position");
       fixed_.points = Eigen::Map<const Eigen::Matrix3Xd>(p.data(), 3, static_cast<Eigen::Index>(p.size() / 3));
       if (!attrs_.isSet("triangle")) throw error("triangle", "goes with `position`: the surface's triangles");
@@ -59,6 +68,7 @@ class SurfaceExporter : public Component, public Observer {
     if (scene().escapesOutputFolder(name))
       throw error("filename", "'" + name + "' would be written outside the output folder (--out); give a name inside it");
     base_ = scene().outputPath(name);
+    last_ = -1;
     std::error_code ec;
     const std::filesystem::path dir = std::filesystem::path(base_).parent_path();
     if (!dir.empty()) std::filesystem::create_directories(dir, ec);

@@ -1,10 +1,11 @@
 // WriteState (SOFA's): the state of the node's MechanicalObject at chosen times, in SOFA's dump
 // format (io/scene/StateDump.h), which its regression references use and `viscera sofa-suite`
-// reads. The frames are kept and the file written whole at the end of the run (also after a
-// divergence, with the good frames).
+// reads. Frames are written as the run goes into a temporary file that takes the dump's name at
+// the end of the run (also after a divergence, with the good frames).
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <sstream>
 
 #include "core/Registry.h"
@@ -35,6 +36,10 @@ class WriteState : public Component, public Observer {
     if (scene().escapesOutputFolder(name))
       throw error("filename", "'" + name + "' would be written outside the output folder (--out); give a name inside it");
     path_ = scene().outputPath(name);
+    std::error_code ec;
+    const std::filesystem::path dir = std::filesystem::path(path_).parent_path();
+    if (!dir.empty()) std::filesystem::create_directories(dir, ec);
+    writer_ = std::make_unique<io::StateDumpWriter>(path_);
     next_ = 0;
     maybeWrite(s, t);
   }
@@ -55,34 +60,31 @@ class WriteState : public Component, public Observer {
     while (t + slack >= timeAt(next_)) ++next_;
     char head[64];
     std::snprintf(head, sizeof head, "T= %.17g\n", t);
-    text_ += head;
+    std::string text = head;
     auto line = [&](const char* key, const Eigen::Matrix3Xd& m) {
       std::ostringstream out;
       out.precision(17);
       out << "  " << key << "=";
       for (Eigen::Index i = 0; i < m.size(); ++i) out << ' ' << m.data()[i];
-      text_ += out.str() + "\n";
+      text += out.str() + "\n";
     };
     if (attrs_.boolean("writeX")) line("X", state_->x(s));
     if (attrs_.boolean("writeX0")) line("X0", state_->x0);
     if (attrs_.boolean("writeV")) line("V", state_->v(s));
     if (attrs_.boolean("writeF")) line("F", state_->live(s).f);
+    writer_->append(text);
   }
   void flush() {
-    if (path_.empty() || written_) return;
-    std::error_code ec;
-    const std::filesystem::path dir = std::filesystem::path(path_).parent_path();
-    if (!dir.empty()) std::filesystem::create_directories(dir, ec);
-    io::writeMaybeGzip(path_, text_);
-    written_ = true;
+    if (writer_) writer_->finish();
+    writer_.reset();
   }
 
   MechanicalObject* state_ = nullptr;
   double period_ = 0;
   std::vector<double> times_;
   size_t next_ = 0;
-  std::string path_, text_;
-  bool written_ = false;
+  std::string path_;
+  std::unique_ptr<io::StateDumpWriter> writer_;  // open from begin to the end of the run
 };
 
 }  // namespace
@@ -93,7 +95,8 @@ void registerWriteState(Registry& r) {
   s.category = "output";
   s.doc = "Writes the node's MechanicalObject at chosen times in SOFA's state dump format (T=, X=, V=, F= lines; "
           "gzip-compressed when the name ends in .gz), in the output folder, as SOFA's WriteState: from the first "
-          "`time` every `period`, or at each listed time. The file is written whole at the end of the run.";
+          "`time` every `period`, or at each listed time. The dump takes its name at the end of the run (a temporary "
+          "file beside it meanwhile).";
   s.add(AttrSpec::string("filename").req().help("the file, in the output folder (.gz: compressed)"));
   s.add(AttrSpec::real("period").def("0").atLeast(0).unit(Dimension::time()).help("time between writes (0: the listed times only)"));
   s.add(AttrSpec::reals("time").def("0").unit(Dimension::time()).help("the first time to write at, or (period 0) every time to write at"));

@@ -937,8 +937,10 @@ void registerTopologies(Registry& r) {
     s.doc = "SOFA's sparse grid that keeps a shape's separate parts apart: the surface is voxelised 2^L times finer "
             "(L = nbVirtualFinerLevels); a cell of the n-node grid whose fine cells fall into several face-connected "
             "groups becomes one hexahedron per group, and hexahedra of neighbouring cells share the corners of their "
-            "common face, edge or corner only where their fine cells touch straight across it. Where no cell holds "
-            "separate parts it is the SparseGridTopology of the same surface voxelised finely.";
+            "common face, edge or corner only where their fine cells touch straight across it. Each such hexahedron "
+            "is a whole cell (volume-based masses and stiffness count a cell of two parts twice, as SOFA's), and "
+            "nodes are numbered by hexahedron, not in grid order. A BarycentricMapping embeds a point in the first "
+            "hexahedron of its cell: a surface mapped onto a cell of several parts follows the first part.";
     s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
     s.add(AttrSpec::integer("nbVirtualFinerLevels").def("0").atLeast(0).atMost(6).help("how many times the cells are halved to find the parts"));

@@ -1,37 +1,51 @@
 #include "io/scene/StateDump.h"
 
+#include <unistd.h>
 #include <zlib.h>
 
+#include <cstdio>
+#include <filesystem>
+
 #include "core/Error.h"
-#include "core/Files.h"
 
 namespace viscera::io {
 
-namespace {
-
-// The gzip stream of `text` (zlib's deflate with a gzip header: windowBits 15 + 16).
-std::string gzip(const std::string& text, const std::string& path) {
-  if (text.size() > (1u << 31)) throw Error(SourceLoc{path}, "more than 2 GiB of text to compress in one go");
-  z_stream z{};
-  if (deflateInit2(&z, Z_DEFAULT_COMPRESSION, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY) != Z_OK)
-    throw Error(SourceLoc{path}, "cannot start gzip compression");
-  std::string out(deflateBound(&z, static_cast<uLong>(text.size())) + 32, '\0');
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(text.data()));
-  z.avail_in = static_cast<uInt>(text.size());
-  z.next_out = reinterpret_cast<Bytef*>(out.data());
-  z.avail_out = static_cast<uInt>(out.size());
-  const int rc = deflate(&z, Z_FINISH);
-  out.resize(z.total_out);
-  deflateEnd(&z);
-  if (rc != Z_STREAM_END) throw Error(SourceLoc{path}, "gzip compression failed");
-  return out;
+StateDumpWriter::StateDumpWriter(const std::string& path) : path_(path) {
+  const bool gz = path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0;
+  temporary_ = path + ".part" + std::to_string(::getpid());
+  // zlib writes plain text too ("T": transparent), so one code path serves both.
+  file_ = gzopen(temporary_.c_str(), gz ? "wb" : "wT");
+  if (!file_) throw Error(SourceLoc{path}, "cannot write the state dump");
 }
 
-}  // namespace
+StateDumpWriter::~StateDumpWriter() {
+  if (file_) {
+    gzclose(static_cast<gzFile>(file_));
+    std::error_code ec;
+    std::filesystem::remove(temporary_, ec);
+  }
+}
 
-void writeMaybeGzip(const std::string& path, const std::string& text) {
-  const bool gz = path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0;
-  writeFileAtomic(path, gz ? gzip(text, path) : text);
+void StateDumpWriter::append(const std::string& text) {
+  if (!file_) throw Error(SourceLoc{path_}, "the state dump is already finished");
+  if (!text.empty() && gzwrite(static_cast<gzFile>(file_), text.data(), static_cast<unsigned>(text.size())) == 0)
+    throw Error(SourceLoc{path_}, "cannot write the state dump (disk full?)");
+}
+
+void StateDumpWriter::finish() {
+  if (!file_) return;
+  const int rc = gzclose(static_cast<gzFile>(file_));
+  file_ = nullptr;
+  std::error_code ec;
+  if (rc != Z_OK) {
+    std::filesystem::remove(temporary_, ec);
+    throw Error(SourceLoc{path_}, "cannot write the state dump (disk full?)");
+  }
+  std::filesystem::rename(temporary_, path_, ec);
+  if (ec) {
+    std::filesystem::remove(temporary_, ec);
+    throw Error(SourceLoc{path_}, "cannot put the state dump in place: " + ec.message());
+  }
 }
 
 }  // namespace viscera::io

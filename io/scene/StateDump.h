@@ -9,7 +9,21 @@
 
 namespace viscera::io {
 
-// Writes `text` to `path` whole (atomically), gzip-compressed if the name ends in ".gz".
-void writeMaybeGzip(const std::string& path, const std::string& text);
+// A dump written as it grows, gzip-compressed if the name ends in ".gz": frames go to a temporary
+// file beside `path`, which replaces `path` only when finish() is called (so a reader never sees a
+// half-written dump, and an older one stays until then). The temporary is removed if never finished.
+class StateDumpWriter {
+ public:
+  explicit StateDumpWriter(const std::string& path);
+  ~StateDumpWriter();
+  StateDumpWriter(const StateDumpWriter&) = delete;
+  StateDumpWriter& operator=(const StateDumpWriter&) = delete;
+  void append(const std::string& text);
+  void finish();
+
+ private:
+  std::string path_, temporary_;
+  void* file_ = nullptr;  // zlib's gzFile, also for plain text ("wT")
+};
 
 }  // namespace viscera::io

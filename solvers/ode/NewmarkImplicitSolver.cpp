@@ -5,7 +5,8 @@
 //   x = x~ + beta h^2 a,  x~ = x + h v + (1/2 - beta) h^2 a_old,
 //   v = v~ + gamma h a,   v~ = v + (1 - gamma) h a_old,
 //   [(1 + gamma h rM) M - (beta h^2 + gamma h rK) K] a = f + K (x~ - x) - rM M v~ + rK K v~,
-// with f and K = df/dx at the step start. The first acceleration solves M a = f at the start.
+// with f and K = df/dx at the step start. The first acceleration solves M a = f - rM M v + rK K v
+// at the start.
 #include <memory>
 
 #include "core/Registry.h"
@@ -94,12 +95,12 @@ class NewmarkImplicitSolver : public Component, public OdeSolver, public Statefu
     const Eigen::Map<const Eigen::Matrix3Xd> acc(a.data(), 3, n);
     s.x = xPred + (beta_ * h * h) * acc;
     s.v = vPred + (gamma_ * h) * acc;
-    l.a = acc;
     if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {
       s.x = x0;
       s.v = v0;
       return bad;
     }
+    l.a = acc;  // only a good step's acceleration is carried on
     return std::nullopt;
   }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }

@@ -303,9 +303,9 @@ TEST(BDFOdeSolver, RayleighStiffnessDampingDampsTheOscillator) {
 // oscillator: after 500 steps, 1/2 m v^2 + 1/2 k u^2 is its initial value (to round-off); with
 // gamma 0.6 (and beta (gamma + 1/2)^2 / 4, unconditionally stable) it loses energy.
 TEST(NewmarkImplicitSolver, AverageAccelerationKeepsTheOscillatorsEnergy) {
-  auto energyAfter = [](const std::string& gamma, const std::string& beta) {
+  auto energyAfter = [](const std::string& gamma, const std::string& beta, const std::string& damping = "") {
     auto scene = buildScene(io::parseSceneText(R"(<Node name="root" gravity="0 0 0" dt="0.01">
-      <NewmarkImplicitSolver gamma=")" + gamma + R"(" beta=")" + beta + R"("/>
+      <NewmarkImplicitSolver gamma=")" + gamma + R"(" beta=")" + beta + R"(" )" + damping + R"(/>
       <SparseLDLSolver/>
       <MechanicalObject position="0 0 0  1.1 0 0"/>
       <UniformMass vertexMass="2"/>
@@ -321,4 +321,8 @@ TEST(NewmarkImplicitSolver, AverageAccelerationKeepsTheOscillatorsEnergy) {
   const double start = 0.5 * 100 * 0.1 * 0.1;
   EXPECT_NEAR(energyAfter("0.5", "0.25"), start, 1e-10 * start);
   EXPECT_LT(energyAfter("0.6", "0.3025"), 0.9 * start);
+  // Rayleigh damping (mass, then stiffness) takes energy out of the energy-keeping scheme:
+  // exp(-rM t) = exp(-1) and exp(-rK w^2 t) = exp(-2.5) of it over the 5 s.
+  EXPECT_LT(energyAfter("0.5", "0.25", R"(rayleighMass="0.2")"), 0.5 * start);
+  EXPECT_LT(energyAfter("0.5", "0.25", R"(rayleighStiffness="0.01")"), 0.2 * start);
 }

@@ -224,14 +224,14 @@ TEST(SofaSuite, SofasRegressionScenesThatPassStayPassing) {
   EXPECT_EQ(run, static_cast<int>(passing.size()));
 }
 
-// WriteState writes SOFA's dump format: read back by the suite's own reader, gzip-compressed, at
+// WriteState writes SOFA's dump format (forces too): read back by the suite's own reader, gzip-compressed, at
 // the first time and every period after, with the falling ball where symplectic Euler puts it
 // (z = 3 - h^2 g N (N + 1) / 2, v = -h g N).
 TEST(SofaSuite, WriteStateWritesWhatTheSuiteReads) {
   TempDir dir;
   std::string scene = kFallScene;
   scene.replace(scene.find("</Node>"), 7,
-                R"(<WriteState filename="ball.txt.gz" time="0.02" period="0.03" writeV="true"/></Node>)");
+                R"(<WriteState filename="ball.txt.gz" time="0.02" period="0.03" writeV="true" writeF="true"/></Node>)");
   write(dir / "fall.scn", scene);
   auto built = buildScene(io::readScene(dir / "fall.scn"));
   built->setOutputDirectory(dir / "out");

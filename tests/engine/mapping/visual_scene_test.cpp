@@ -469,7 +469,8 @@ TEST(SurfaceExport, ObjFramesFollowTheVisualModelAndStlTakesLinkedSurfaces) {
   const std::string visual = R"(<OglModel name="skin" position="0 0 2  3 0 2  0 2 2  0 0 0" triangles="0 2 1  0 1 3  1 2 3  0 3 2"/>
       <BarycentricMapping input="@.." output="@skin"/>
       <VisualModelOBJExporter filename="skin" exportAtBegin="true" exportEveryNumberOfSteps="2"/>
-      <STLExporter filename="fixed" exportAtEnd="true" position="@skin.position" triangle="@skin.triangles" binaryformat="false"/>)";
+      <TriangleSetTopologyContainer name="rest" position="0 0 2  3 0 2  0 2 2  0 0 0" triangles="0 2 1  0 1 3  1 2 3  0 3 2"/>
+      <STLExporter filename="fixed" exportAtEnd="true" position="@rest.position" triangle="@rest.triangles" binaryformat="false"/>)";
   SceneRun run(dir, sceneWith(visual));
   ASSERT_EQ(run.error, "");
   run.steps(4);
@@ -487,4 +488,11 @@ TEST(SurfaceExport, ObjFramesFollowTheVisualModelAndStlTakesLinkedSurfaces) {
   EXPECT_GT((skin.x(run.sim->state()) - skin.x0).cwiseAbs().maxCoeff(), 1e-4);  // it moved
   const io::SurfaceMesh fixed = io::readSurface((out / "fixed_000004.stl").string());
   EXPECT_EQ(fixed.triangles.cols(), 4);
+  EXPECT_LT((fixed.points.rowwise().maxCoeff() - Eigen::Vector3d(3, 2, 2)).norm(), 1e-6);  // the fixed surface
+  // A link to the moving model is refused: it would be exported frozen.
+  std::string bad = sceneWith(R"(<OglModel name="skin" position="0 0 2  3 0 2  0 2 2  0 0 0" triangles="0 2 1  0 1 3  1 2 3  0 3 2"/>
+      <BarycentricMapping input="@.." output="@skin"/>
+      <STLExporter position="@skin.position" triangle="@skin.triangles"/>)");
+  SceneRun refused(dir, bad);
+  EXPECT_NE(refused.error.find("STLExporter.position: links to 'skin', which moves"), std::string::npos) << refused.error;
 }
