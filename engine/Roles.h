@@ -27,6 +27,9 @@ class Topology {
   virtual const HexList& hexahedra() const { static const HexList none; return none; }
   // Cells per axis for structured grids (SOFA's swapping pattern needs it); zero otherwise.
   virtual std::array<int, 3> gridCells() const { return {0, 0, 0}; }
+  // Where a cell holds several hexahedra over separate parts of a shape (SOFA's ramified grid):
+  // the hexahedron of the part at point p (in the topology's geometry); -1 elsewhere.
+  virtual int partAt(const Eigen::Vector3d& p) const { return -1; }
 };
 
 // Forces on the nodes of one MechanicalObject. `addForce` also linearises at x, keeping the

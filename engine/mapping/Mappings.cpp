@@ -165,6 +165,18 @@ class BarycentricMapping : public PointMapping {
       hexEmbedding_ = embedInHexahedra(nodes, *hexa, output_.initial);
       distance = hexEmbedding_.distance;
       hexa_ = true;
+      // A cell holding separate parts (a ramified grid) has one hexahedron per part over the
+      // same corners: a point follows the part it lies in, with the same local coordinates.
+      for (int p = 0; p < hexEmbedding_.size(); ++p) {
+        const int part = grid->partAt(output_.initial.col(p));
+        if (part < 0) continue;
+        const auto& h = (*hexa)[static_cast<size_t>(part)];
+        bool sameCell = true;
+        for (int k = 0; k < 8 && sameCell; ++k)
+          sameCell = (nodes.col(h[k]) - nodes.col(hexEmbedding_.nodes(k, p))).norm() <= 1e-12 * (1 + nodes.col(h[k]).norm());
+        if (sameCell)
+          for (int k = 0; k < 8; ++k) hexEmbedding_.nodes(k, p) = h[k];
+      }
     }
 
     const std::string units = scene().units().str();

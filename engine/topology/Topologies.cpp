@@ -626,6 +626,13 @@ class SparseGridTopology : public Component, public Topology {
   const Eigen::Matrix3Xd& points() const override { return points_; }
   const TetList& tetrahedra() const override { return kNoTets; }
   const HexList& hexahedra() const override { return hexa_; }
+  int partAt(const Eigen::Vector3d& p) const override {
+    if (finePart_.empty()) return -1;
+    std::array<int, 3> i{};
+    for (int a = 0; a < 3; ++a)
+      i[a] = std::clamp(static_cast<int>(std::floor((p[a] - fineLo_[a]) / fineStep_[a])), 0, fineCells_[a] - 1);
+    return finePart_[static_cast<size_t>(i[0] + fineCells_[0] * (i[1] + fineCells_[1] * i[2]))];  // hexahedron = part
+  }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "position") {
       out.values.assign(points_.data(), points_.data() + points_.size());
@@ -737,6 +744,15 @@ class SparseGridTopology : public Component, public Topology {
             }
           }
     if (groupCell.empty()) throw error("fileTopology", "the surface encloses no cell of the grid");
+    // What partAt needs: the fine grid and, for cells of several parts, each fine cell's part.
+    std::vector<int> parts(static_cast<size_t>(c[0]) * c[1] * c[2], 0);
+    for (int cell : groupCell) ++parts[static_cast<size_t>(cell)];
+    fineLo_ = lo;
+    fineStep_ = (hi - lo).cwiseQuotient(Eigen::Vector3d(f[0], f[1], f[2]));
+    fineCells_ = f;
+    finePart_.assign(fine.size(), -1);
+    for (size_t e = 0; e < fine.size(); ++e)
+      if (group[e] >= 0 && parts[static_cast<size_t>(groupCell[static_cast<size_t>(group[e])])] > 1) finePart_[e] = group[e];
     // Corner slots (group, corner) joined by union-find where fine cells of two groups touch
     // across the face, edge or corner their coarse cells share.
     std::vector<int> parent(groupCell.size() * 8);
@@ -819,6 +835,11 @@ class SparseGridTopology : public Component, public Topology {
 
   Eigen::Matrix3Xd points_;
   HexList hexa_;
+  // A ramified grid's fine cells (origin, size, counts) and, in cells of several parts, the
+  // part (hexahedron) each fine cell belongs to; -1 elsewhere. Empty otherwise.
+  Eigen::Vector3d fineLo_ = Eigen::Vector3d::Zero(), fineStep_ = Eigen::Vector3d::Ones();
+  std::array<int, 3> fineCells_{};
+  std::vector<int> finePart_;
 };
 
 // SOFA's PointSetTopologyContainer and EdgeSetTopologyContainer: points (from `src` or
@@ -939,8 +960,8 @@ void registerTopologies(Registry& r) {
             "groups becomes one hexahedron per group, and hexahedra of neighbouring cells share the corners of their "
             "common face, edge or corner only where their fine cells touch straight across it. Each such hexahedron "
             "is a whole cell (volume-based masses and stiffness count a cell of two parts twice, as SOFA's), and "
-            "nodes are numbered by hexahedron, not in grid order. A BarycentricMapping embeds a point in the first "
-            "hexahedron of its cell: a surface mapped onto a cell of several parts follows the first part.";
+            "nodes are numbered by hexahedron, not in grid order. A BarycentricMapping embeds a point in the "
+            "hexahedron of the part it lies in.";
     s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
     s.add(AttrSpec::integer("nbVirtualFinerLevels").def("0").atLeast(0).atMost(6).help("how many times the cells are halved to find the parts"));

@@ -181,4 +181,21 @@ TEST(GeometryEngines, RamificationKeepsSeparatePartsApart) {
   EXPECT_EQ(fieldOf(*s, "fork", "position").size(), 3u * 16);
   EXPECT_EQ(fieldOf(*s, "block", "hexahedra").size(), fieldOf(*s, "blockPlain", "hexahedra").size());
   EXPECT_EQ(fieldOf(*s, "block", "position").size(), fieldOf(*s, "blockPlain", "position").size());
+
+  // Points mapped onto the fork follow the prong they lie in: each hangs on the 8 nodes of its
+  // own part's hexahedron.
+  auto mapped = build(R"(<Node name="body"><SparseGridRamificationTopology name="fork" n="2 2 2" fileTopology="fork.obj" nbVirtualFinerLevels="2"/>
+      <MechanicalObject/>
+      <Node name="points"><MechanicalObject position="0.1 0.5 0.5  0.9 0.5 0.5"/><BarycentricMapping/></Node></Node>)",
+                      dir / "scene.xml");
+  const auto hexa = fieldOf(*mapped, "fork", "hexahedra");
+  const Mapping& map = *mapped->all<Mapping>().front();
+  for (int p = 0; p < 2; ++p) {
+    std::vector<std::pair<int, double>> w;
+    ASSERT_TRUE(map.pointWeights(p, w));
+    std::set<int> used;
+    for (const auto& [node, weight] : w) used.insert(node);
+    const std::set<int> part(hexa.begin() + 8 * p, hexa.begin() + 8 * (p + 1));  // part p is hexahedron p
+    EXPECT_EQ(used, part) << "point " << p;
+  }
 }
