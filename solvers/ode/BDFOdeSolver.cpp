@@ -196,26 +196,8 @@ class BDFOdeSolver : public Component, public OdeSolver, public Stateful {
  private:
   // [(1 + c rM) M - c (c + rK) K] dv = rhs at the last linearisation; a message on failure.
   std::optional<std::string> solveTangent(State& st, Live& l, double c, const Eigen::VectorXd& rhs, Eigen::VectorXd& dv) const {
-    const int n = sys_->nodes();
-    const double mFact = 1 + c * rM_, kFact = -c * (c + rK_);
-    LinearProblem problem;
-    if (linear_->needsMatrix()) {
-      BlockSparseMatrix& A = l.A;
-      sys_->assembleStiffness(st, A, c / (c + rK_), kFact);
-      sys_->addMass(A, mFact);
-      sys_->constrain(A);
-      useAssembled(problem, A);
-    } else {
-      problem.apply = [this, &st, n, mFact, kFact, c](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
-        Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
-        sys_->addMdx(P, Q, mFact);
-        sys_->addKdx(st, P, Q, kFact, c / (c + rK_));
-        sys_->project(Q);
-        q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
-      };
-    }
-    const LinearSolveInfo info = linear_->solve(st, problem, rhs, dv);
+    const LinearSolveInfo info =
+        solveStepSystem(*sys_, *linear_, st, l.A, 1 + c * rM_, -c * (c + rK_), c / (c + rK_), rhs, dv);
     if (!info.ok) return "linear solver failed: " + info.message;
     if (!dv.allFinite()) return std::string("non-finite Newton correction");
     return std::nullopt;

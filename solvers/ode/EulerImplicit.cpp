@@ -157,6 +157,29 @@ void useAssembled(LinearProblem& problem, const BlockSparseMatrix& A) {
   for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();
 }
 
+LinearSolveInfo solveStepSystem(const MechanicalSystem& sys, LinearSolver& linear, State& st, BlockSparseMatrix& A,
+                                double mFact, double kFact, double uScale, const Eigen::VectorXd& rhs, Eigen::VectorXd& x) {
+  const int n = sys.nodes();
+  LinearProblem problem;
+  if (linear.needsMatrix()) {
+    sys.assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
+    if (kFact == 0) A.setZero();
+    sys.addMass(A, mFact);
+    sys.constrain(A);
+    useAssembled(problem, A);
+  } else {
+    problem.apply = [&sys, &st, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+      const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
+      Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
+      sys.addMdx(P, Q, mFact);
+      if (kFact != 0) sys.addKdx(st, P, Q, kFact, uScale);
+      sys.project(Q);
+      q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
+    };
+  }
+  return linear.solve(st, problem, rhs, x);
+}
+
 LinearSolver* findLinearSolver(Component& c) {
   LinearSolver* l = c.node().find<LinearSolver>();
   if (!l) throw c.error("needs a linear solver in its node (CGLinearSolver or SparseLDLSolver)");

@@ -109,26 +109,7 @@ class NewmarkImplicitSolver : public Component, public OdeSolver, public Statefu
   // (mFact M + kFact (K_damped + uScale K_undamped)) a = rhs at the last linearisation.
   std::optional<std::string> solve(State& st, Live& l, double mFact, double kFact, double uScale, const Eigen::VectorXd& rhs,
                                    Eigen::VectorXd& a) const {
-    const int n = sys_->nodes();
-    LinearProblem problem;
-    if (linear_->needsMatrix()) {
-      BlockSparseMatrix& A = l.A;
-      sys_->assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
-      if (kFact == 0) A.setZero();
-      sys_->addMass(A, mFact);
-      sys_->constrain(A);
-      useAssembled(problem, A);
-    } else {
-      problem.apply = [this, &st, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
-        Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
-        sys_->addMdx(P, Q, mFact);
-        if (kFact != 0) sys_->addKdx(st, P, Q, kFact, uScale);
-        sys_->project(Q);
-        q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
-      };
-    }
-    const LinearSolveInfo info = linear_->solve(st, problem, rhs, a);
+    const LinearSolveInfo info = solveStepSystem(*sys_, *linear_, st, l.A, mFact, kFact, uScale, rhs, a);
     l.lastIterations = info.iterations;
     if (!info.ok) return "linear solver failed: " + info.message;
     if (!a.allFinite()) return std::string("non-finite acceleration");
