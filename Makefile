@@ -27,7 +27,7 @@ demo: build
 	@rm -rf $(OUT_DIR)/demo.tmp
 	$(VISCERA) run scenes/gel_phantom.xml --time 80 --out $(OUT_DIR)/demo --summary $(OUT_DIR)/demo/summary.json --wrench $(OUT_DIR)/demo/wrench.csv
 	@echo
-	@echo "Demo outputs: $(OUT_DIR)/demo/ (open $(OUT_DIR)/demo/gel_phantom.pvd in ParaView: 80 s of palpation at 30 Hz;"
+	@echo "Demo outputs: $(OUT_DIR)/demo/ (open $(OUT_DIR)/demo/gel_phantom.exo in ParaView: 80 s of palpation at 30 Hz;"
 	@echo "  contact wrench on the instrument in $(OUT_DIR)/demo/wrench.csv; summary in $(OUT_DIR)/demo/summary.json)"
 
 test: build

@@ -16,6 +16,7 @@ void registerTetrahedronFEM(Registry&);
 void registerHexahedronFEM(Registry&);
 void registerHyperelasticFEM(Registry&);
 void registerVTKExporter(Registry&);
+void registerExodusExporter(Registry&);
 void registerSurfaceExporters(Registry&);
 void registerWriteState(Registry&);
 void registerLinearSolvers(Registry&);
@@ -49,6 +50,7 @@ void registerBuiltins(Registry& r) {
   registerHexahedronFEM(r);
   registerHyperelasticFEM(r);
   registerVTKExporter(r);
+  registerExodusExporter(r);
   registerSurfaceExporters(r);
   registerWriteState(r);
   registerLinearSolvers(r);

@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build ccache pkg-config
   libeigen3-dev libsuitesparse-dev libopenblas0-serial libpugixml-dev nlohmann-json3-dev libcli11-dev libtbb-dev zlib1g-dev libnlopt-cxx-dev libboost-dev libopenmpi-dev openmpi-bin
+  libexodusii-dev libnetcdf-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libtorch-dev
   libpcl-dev libopenmesh-dev tetgen

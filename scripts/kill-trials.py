@@ -2,7 +2,7 @@
 """Stops `viscera run` of the 80 s palpation at random points and checks what it left behind.
 
 For each signal (KILL, INT, TERM) and each trial, the run is stopped after a random delay; then
-every file in --out must be complete and readable (each .vtu read by VTK's own reader), the .pvd
+every file in --out must be complete and readable (each .vtu and .exo read by VTK's own reader), the .pvd
 must list exactly the frames on disk, the wrench table (or, after kill -9, its streamed .partial)
 must hold whole rows only, and after INT and TERM the summary must say "interrupted" and the exit
 code be 130 or 143. Prints one line per trial and a table at the end; exits 1 if any check failed.
@@ -37,6 +37,15 @@ def readable_vtu(path):
     return reader.GetErrorCode() == 0 and grid is not None and grid.GetNumberOfPoints() > 0
 
 
+def readable_exo(path):
+    reader = vtk.vtkExodusIIReader()
+    reader.SetFileName(path)
+    reader.UpdateInformation()
+    reader.Update()
+    blocks = reader.GetOutput()
+    return reader.GetNumberOfTimeSteps() > 0 and blocks is not None and blocks.GetNumberOfPoints() > 0
+
+
 def check(out, wrench, summary, sig, rc):
     problems = []
     if sig != "KILL" and rc == -getattr(signal, "SIG" + sig):
@@ -63,6 +72,14 @@ def check(out, wrench, summary, sig, rc):
     unreadable = [f for f in sorted(vtus) if not readable_vtu(os.path.join(out, f))]
     if unreadable:
         problems.append(f"{len(unreadable)} unreadable frames, e.g. {unreadable[0]}")
+    # An Exodus series takes its name when the run ends: after INT or TERM it is there and
+    # whole; after KILL only its temporary is (and an earlier file, if there was one).
+    exos = [f for f in files if f.endswith(".exo")]
+    if sig != "KILL" and not exos and any(".exo.tmp." in f for f in files):
+        problems.append("the Exodus series was not put in place")
+    for f in exos:
+        if not readable_exo(os.path.join(out, f)):
+            problems.append(f"{f} is unreadable")
     table = wrench if os.path.exists(wrench) else wrench + ".partial"
     rows = 0
     if os.path.exists(table):

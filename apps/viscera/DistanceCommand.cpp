@@ -28,6 +28,7 @@
 
 #include "core/Error.h"
 #include "observation/CloudDistance.h"
+#include "io/mesh/Exodus.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
@@ -79,10 +80,20 @@ class SurfaceSource {
     loaded_ = 0;
     current_ = first_.points;
   }
-  // A series; maxGap < 0 selects the default (half the median frame interval).
-  SurfaceSource(const std::string& pvdPath, double maxGap) : series_(true), pvd_(pvdPath) {
-    frames_ = readPvd(pvdPath);
-    first_ = io::readVolumeMesh(frames_.front().path);
+  // A series (.pvd of .vtu frames, or one Exodus .exo file); maxGap < 0 selects the default (half
+  // the median frame interval).
+  SurfaceSource(const std::string& seriesPath, double maxGap) : series_(true), pvd_(seriesPath) {
+    if (std::filesystem::path(seriesPath).extension() == ".exo") {
+      exodus_ = std::make_unique<io::ExodusReader>(seriesPath);
+      if (exodus_->times().empty()) throw Error(SourceLoc{seriesPath}, "the Exodus series has no frames");
+      for (size_t i = 0; i < exodus_->times().size(); ++i)
+        frames_.push_back({exodus_->times()[i], seriesPath + " frame " + std::to_string(i)});
+      first_ = exodus_->mesh();
+      first_.points = exodus_->positions(0);
+    } else {
+      frames_ = readPvd(seriesPath);
+      first_ = io::readVolumeMesh(frames_.front().path);
+    }
     if (first_.tets.cols() == 0)
       throw Error(SourceLoc{frames_.front().path}, "the series frame has no tetrahedra (export the tissue's node with a force field)");
     triangles_ = surfaceOf(first_, frames_.front().path);
@@ -124,6 +135,11 @@ class SurfaceSource {
   // The vertex positions of frame i (3 x numVertices), read when it is not the last one read.
   const Eigen::Matrix3Xd& positions(int i) {
     if (i == loaded_) return current_;
+    if (exodus_) {  // one mesh for every frame
+      current_ = exodus_->positions(i);
+      loaded_ = i;
+      return current_;
+    }
     const std::string& path = frames_[static_cast<size_t>(i)].path;
     io::VolumeMesh mesh = io::readVolumeMesh(path);
     if (mesh.points.cols() != first_.points.cols() || mesh.tets.cols() != first_.tets.cols() || mesh.tets != first_.tets)
@@ -138,6 +154,7 @@ class SurfaceSource {
   bool series_ = false;
   std::string pvd_;
   std::vector<SeriesFrame> frames_;
+  std::unique_ptr<io::ExodusReader> exodus_;  // an Exodus series
   io::VolumeMesh first_;
   obs::TriangleList triangles_;
   double maxGap_ = kInf;
@@ -405,8 +422,8 @@ void addDistanceCommand(CLI::App& app, std::function<int()>& action) {
       "Only the cloud -> surface direction is measured (parts of the surface the camera does not see have no points).\n"
       "Distances are in the mesh's length unit; times in seconds. The table has one row per cloud frame.");
   cmd->add_option("--cloud", o->cloud, "cloud file (.pcd, .ply), sequence folder or index CSV")->required();
-  auto* mesh = cmd->add_option("--mesh", o->mesh, "the surface: a mesh file (.vtu, .vtk, .msh; tetrahedra or triangles)");
-  cmd->add_option("--series", o->series, "the surface per frame: a simulation's .pvd series (the frame nearest each cloud's time)")
+  auto* mesh = cmd->add_option("--mesh", o->mesh, "the surface: a mesh file (.vtu, .vtk, .msh, or an .exo series' first frame; tetrahedra or triangles)");
+  cmd->add_option("--series", o->series, "the surface per frame: a simulation's .pvd series or Exodus .exo file (the frame nearest each cloud's time)")
       ->excludes(mesh);
   cmd->add_option("--transform", o->transform, "camera -> scene transform file applied to the clouds");
   cmd->add_option("--cloud-scale", o->cloudScale, "multiplies cloud coordinates before the transform (1000: metres to mm)")

@@ -292,7 +292,7 @@ void addRegisterCommand(CLI::App& app, std::function<int()>& action) {
       "A flat, featureless view (one face) leaves directions unconstrained: they keep the initial guess, and a\n"
       "warning names them.");
   icp->add_option("--cloud", io->cloud, "rest-state point cloud, camera frame (.pcd or .ply)")->required();
-  icp->add_option("--mesh", io->mesh, "the tissue mesh, scene frame (.vtu, .vtk, .msh; tetrahedra or triangles)")->required();
+  icp->add_option("--mesh", io->mesh, "the tissue mesh, scene frame (.vtu, .vtk, .msh, or an .exo series' first frame; tetrahedra or triangles)")->required();
   auto* init = icp->add_option("--init", io->init, "initial camera -> scene transform file");
   icp->add_option("--init-translation", io->initTranslation, "initial translation \"x y z\" (instead of --init)")->excludes(init);
   icp->add_option("--init-rotation", io->initRotation, "initial rotation \"rx ry rz\", degrees about x, then y, then z (instead of --init)")

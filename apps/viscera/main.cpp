@@ -78,8 +78,14 @@ int cmdRun(const RunCommand& o) {
   // Every output is checked before anything runs: a typo in a folder costs nothing.
   const std::vector<std::pair<std::string, const char*>> outputs = {
       {o.summary, "--summary"}, {o.wrench, "--wrench"}, {o.stateOut, "--state-out"}, {o.saveState, "--save-state"}};
-  for (const auto& [path, option] : outputs)
-    if (!path.empty()) cli::requireParentFolder(path, option);
+  for (const auto& [path, option] : outputs) {
+    if (path.empty()) continue;
+    // A file inside --out may name that folder before the run makes it (as `make demo` does).
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    const bool insideNewOut = !o.out.empty() && parent.lexically_normal() == std::filesystem::path(o.out).lexically_normal() &&
+                              !std::filesystem::exists(parent);
+    if (!insideNewOut) cli::requireParentFolder(path, option);
+  }
   std::unique_ptr<tbb::global_control> threads;
   if (o.threads > 0) threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, o.threads);
   auto scene = loadScene(o.scene, o.sets);

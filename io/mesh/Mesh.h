@@ -19,7 +19,7 @@ struct VolumeMesh {
   Eigen::Matrix<int, 4, Eigen::Dynamic> quads;
 };
 
-// Reads a mesh by extension (.msh, .vtk, .vtu). Throws viscera::Error "file:line: what" for
+// Reads a mesh by extension (.msh, .vtk, .vtu; .exo: an Exodus series' first frame). Throws viscera::Error "file:line: what" for
 // unreadable files, bad counts, indices out of range, unsupported element types or formats.
 VolumeMesh readVolumeMesh(const std::string& path);
 VolumeMesh readGmsh(const std::string& path);

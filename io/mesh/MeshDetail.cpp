@@ -1,5 +1,6 @@
 #include "core/Files.h"
 #include "io/mesh/MeshDetail.h"
+#include "io/mesh/Exodus.h"
 
 #include <cctype>
 #include <cerrno>
@@ -241,9 +242,15 @@ VolumeMesh readVolumeMesh(const std::string& path) {
   if (ext == ".msh") return readGmsh(path);
   if (ext == ".vtk") return readVtkLegacy(path);
   if (ext == ".vtu") return readVtu(path);
+  if (ext == ".exo") {  // an Exodus series: its first frame
+    const ExodusReader series(path);
+    VolumeMesh mesh = series.mesh();
+    if (!series.times().empty()) mesh.points = series.positions(0);
+    return mesh;
+  }
   detail::fail(path, 0,
                "unknown mesh format " + (ext.empty() ? std::string("(no extension)") : detail::quoted(ext)) +
-                   ": expected .msh (Gmsh), .vtk (legacy VTK) or .vtu (VTK XML)");
+                   ": expected .msh (Gmsh), .vtk (legacy VTK), .vtu (VTK XML) or .exo (Exodus II, its first frame)");
 }
 
 }  // namespace viscera::io

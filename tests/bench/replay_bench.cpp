@@ -17,6 +17,7 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "io/scene/SceneReader.h"
+#include "tests/support/SceneFiles.h"
 
 using namespace viscera;
 
@@ -24,7 +25,7 @@ namespace {
 
 void dropExporters(ElementDesc& el) {
   auto& c = el.children;
-  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return e.tag == "VTKExporter"; }), c.end());
+  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return test_support::isExporter(e.tag); }), c.end());
   for (auto& ch : c) dropExporters(ch);
 }
 

@@ -13,16 +13,17 @@
 #include "engine/Simulation.h"
 #include "core/Scene.h"
 #include "io/scene/SceneReader.h"
+#include "tests/support/SceneFiles.h"
 
 using namespace viscera;
 
 namespace {
 
 // Drops exporters so that the benchmark measures the mechanics only.
-void dropTag(ElementDesc& el, const std::string& tag) {
+void dropExporters(ElementDesc& el) {
   auto& c = el.children;
-  c.erase(std::remove_if(c.begin(), c.end(), [&](const ElementDesc& e) { return e.tag == tag; }), c.end());
-  for (auto& ch : c) dropTag(ch, tag);
+  c.erase(std::remove_if(c.begin(), c.end(), [&](const ElementDesc& e) { return test_support::isExporter(e.tag); }), c.end());
+  for (auto& ch : c) dropExporters(ch);
 }
 
 void replaceTag(ElementDesc& el, const std::string& from, const std::string& to) {
@@ -80,7 +81,7 @@ void pressPhantom(SceneDesc& d) {
 void runScene(benchmark::State& state, const std::string& file, const std::function<void(SceneDesc&)>& edit) {
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(state.range(0)));
   SceneDesc desc = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/" + file);
-  dropTag(desc.root, "VTKExporter");
+  dropExporters(desc.root);
   dropContact(desc.root);
   if (file.rfind("gel_phantom", 0) == 0) pressPhantom(desc);
   if (edit) edit(desc);

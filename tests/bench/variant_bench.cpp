@@ -17,6 +17,7 @@
 #include "io/scene/InputCache.h"
 #include "io/scene/SceneReader.h"
 #include "solvers/linear/LinearSolver.h"
+#include "tests/support/SceneFiles.h"
 
 using namespace viscera;
 
@@ -25,7 +26,7 @@ namespace {
 SceneDesc coarsePhantom() {
   SceneDesc d = io::readScene(std::string(VISCERA_SOURCE_DIR) + "/scenes/gel_phantom_coarse.xml");
   auto& c = d.element("phantom").children;
-  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return e.tag == "VTKExporter"; }), c.end());
+  c.erase(std::remove_if(c.begin(), c.end(), [](const ElementDesc& e) { return test_support::isExporter(e.tag); }), c.end());
   return d;
 }
 

@@ -19,6 +19,7 @@
 #include "engine/Simulation.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "io/mesh/Exodus.h"
 #include "io/scene/SceneReader.h"
 #include "learning/nn/Stepper.h"
 
@@ -97,13 +98,20 @@ TEST(Scenes, EveryShippedSceneRuns20StepsAndExports) {
     }
     EXPECT_GT(moved, 0.0);
 
-    // A .pvd index and .vtu files; every file the index names exists.
+    // A .pvd index and .vtu files, every file the index names existing; or an Exodus series with
+    // a frame for each export step.
     ASSERT_TRUE(fs::is_directory(out)) << "nothing written to " << out;
-    int pvd = 0, vtu = 0;
+    int pvd = 0, vtu = 0, exo = 0;
     for (const auto& e : fs::directory_iterator(out)) {
       if (e.path().extension() == ".vtu") {
         ++vtu;
         EXPECT_GT(fs::file_size(e.path()), 0u) << e.path();
+      }
+      if (e.path().extension() == ".exo") {
+        ++exo;
+        const viscera::io::ExodusReader series(e.path().string());
+        EXPECT_GE(series.times().size(), 2u) << e.path();
+        EXPECT_GT(series.mesh().tets.cols(), 0) << e.path();
       }
       if (e.path().extension() != ".pvd") continue;
       ++pvd;
@@ -114,8 +122,8 @@ TEST(Scenes, EveryShippedSceneRuns20StepsAndExports) {
         EXPECT_TRUE(fs::exists(out / (*it)[1].str())) << e.path() << " names missing " << (*it)[1];
       EXPECT_GT(named, 0) << e.path() << " names no file:\n" << index;
     }
-    EXPECT_GE(pvd, 1);
-    EXPECT_GE(vtu, 1);
+    EXPECT_EQ(pvd >= 1, vtu >= 1);
+    EXPECT_GE(vtu + exo, 1);
   }
   // Nothing was written next to the scenes: exporters honour the output folder.
   EXPECT_EQ(listing(fs::path(VISCERA_SOURCE_DIR) / "scenes"), before);

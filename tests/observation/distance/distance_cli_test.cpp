@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "engine/topology/GridSplit.h"
+#include "io/mesh/Exodus.h"
 #include "io/mesh/Mesh.h"
 #include "io/pointcloud/CloudIo.h"
 #include "io/scene/Transform.h"
@@ -173,6 +174,42 @@ TEST(DistanceCli, SequenceAgainstASeriesByTime) {
   const std::string pvd = slurp(tmp.path() / "res" / "surface.pvd");
   EXPECT_NE(pvd.find("surface_000002.vtp"), std::string::npos) << pvd;
   EXPECT_NE(pvd.find("timestep=\"0.12\""), std::string::npos) << pvd;
+}
+
+// The same rising box as one Exodus series (the mesh once, the rise as its displacement, Float64):
+// the same distances, frame by frame; and --mesh takes the series' first frame.
+TEST(DistanceCli, SequenceAgainstAnExodusSeries) {
+  TempDir tmp;
+  viscera::io::ExodusLayout layout;
+  layout.rest = viscera::gridPoints({3, 3, 3}, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(2, 2, 2));
+  layout.tets = viscera::splitHexahedra(viscera::gridHexahedra({3, 3, 3}), 2, 2, true);
+  layout.nodeVectors = {"displacement"};
+  layout.float32 = false;
+  {
+    viscera::io::ExodusWriter w(tmp / "box.exo", layout);
+    for (int f = 0; f < 3; ++f) {
+      Eigen::Matrix3Xd d = Eigen::Matrix3Xd::Zero(3, layout.rest.cols());
+      d.row(2).setConstant(0.1 * f);
+      w.append(0.1 * f, {d}, {});
+    }
+    w.finish();
+  }
+  {
+    viscera::cloud::CloudSequenceWriter writer(tmp / "clouds");
+    for (double t : {0.01, 0.12, 0.21}) writer.add(makeCloud(overTheTop(0.5)), t);
+  }
+  RunResult r = runViscera({"distance", "--cloud", tmp / "clouds", "--series", tmp / "box.exo", "--out", tmp / "table.csv"});
+  ASSERT_EQ(r.rc, 0) << r;
+  const auto table = readTable(tmp / "table.csv");
+  ASSERT_EQ(table.size(), 4u);
+  const double expected[3] = {0.5, 0.4, 0.3}, meshTime[3] = {0, 0.1, 0.2};
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(cell(table, i, "mean"), expected[i], kFloatTol) << "frame " << i;
+    EXPECT_NEAR(cell(table, i, "mesh_time"), meshTime[i], 1e-12) << "frame " << i;
+  }
+  r = runViscera({"distance", "--cloud", tmp / "clouds/frame_000000.pcd", "--mesh", tmp / "box.exo", "--out", tmp / "one.csv"});
+  ASSERT_EQ(r.rc, 0) << r;
+  EXPECT_NEAR(cell(readTable(tmp / "one.csv"), 0, "mean"), 0.5, kFloatTol);
 }
 
 TEST(DistanceCli, TimeGapTooLargeWritesNothing) {
