@@ -48,28 +48,26 @@ inline void reciprocalRoot(const Lanes& v, Lanes& out) {
   out = 1.0 / root;  // one vector division
 }
 
-// The element force of the corotational ("large") tetrahedron, for one element (T = double) or
-// four (T = Lanes). p: node positions; X, G: rest positions in the element frame and shape-
-// function gradients (column-major 3 x 4); R: the frame (column-major); f: nodal forces.
+// The stress of the corotational ("large") tetrahedron in its frame, for one element (T = double)
+// or four (T = Lanes). p: node positions; X, G: rest positions in the element frame and shape-
+// function gradients (column-major 3 x 4); ex, ey, ez: the frame's axes; s: sigma's entries
+// (00, 11, 22, 01, 02, 12).
 template <class T>
-__attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const T* X, const T* G, const T& volume,
-                                                      const T& lambda, const T& mu, T (&R)[9], T (&f)[4][3]) {
+__attribute__((always_inline)) inline void largeStress(const T (&p)[4][3], const T* X, const T* G, const T& lambda, const T& mu,
+                                                       T (&ex)[3], T (&ey)[3], T (&ez)[3], T (&s)[6]) {
   T e[4][3];  // edges from node 0 (e[0] = 0)
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) e[k][r] = p[k][r] - p[0][r];
   // Frame: x along edge 1, z normal to edges 1 and 2, y = z cross x.
   T ia, iw;
   reciprocalRoot(e[1][0] * e[1][0] + e[1][1] * e[1][1] + e[1][2] * e[1][2], ia);
-  const T ex[3] = {e[1][0] * ia, e[1][1] * ia, e[1][2] * ia};
+  for (int r = 0; r < 3; ++r) ex[r] = e[1][r] * ia;
   const T w[3] = {ex[1] * e[2][2] - ex[2] * e[2][1], ex[2] * e[2][0] - ex[0] * e[2][2], ex[0] * e[2][1] - ex[1] * e[2][0]};
   reciprocalRoot(w[0] * w[0] + w[1] * w[1] + w[2] * w[2], iw);
-  const T ez[3] = {w[0] * iw, w[1] * iw, w[2] * iw};
-  const T ey[3] = {ez[1] * ex[2] - ez[2] * ex[1], ez[2] * ex[0] - ez[0] * ex[2], ez[0] * ex[1] - ez[1] * ex[0]};
-  for (int c = 0; c < 3; ++c) {
-    R[3 * c] = ex[c];
-    R[3 * c + 1] = ey[c];
-    R[3 * c + 2] = ez[c];
-  }
+  for (int r = 0; r < 3; ++r) ez[r] = w[r] * iw;
+  ey[0] = ez[1] * ex[2] - ez[2] * ex[1];
+  ey[1] = ez[2] * ex[0] - ez[0] * ex[2];
+  ey[2] = ez[0] * ex[1] - ez[1] * ex[0];
   // Displacements in the element frame, U_k = R (p_k - p_0) - X_k, and their gradient H = U G^T.
   T H[3][3] = {};
   for (int k = 0; k < 4; ++k) {
@@ -79,16 +77,54 @@ __attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const 
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) H[r][c] += u[r] * G[3 * k + c];
   }
-  // sigma = lambda tr(H) I + mu (H + H^T); nodal forces -V sigma g_k, turned back to the world.
+  // sigma = lambda tr(H) I + mu (H + H^T).
   const T tr = lambda * (H[0][0] + H[1][1] + H[2][2]);
-  const T s00 = tr + 2.0 * mu * H[0][0], s11 = tr + 2.0 * mu * H[1][1], s22 = tr + 2.0 * mu * H[2][2];
-  const T s01 = mu * (H[0][1] + H[1][0]), s02 = mu * (H[0][2] + H[2][0]), s12 = mu * (H[1][2] + H[2][1]);
+  s[0] = tr + 2.0 * mu * H[0][0];
+  s[1] = tr + 2.0 * mu * H[1][1];
+  s[2] = tr + 2.0 * mu * H[2][2];
+  s[3] = mu * (H[0][1] + H[1][0]);
+  s[4] = mu * (H[0][2] + H[2][0]);
+  s[5] = mu * (H[1][2] + H[2][1]);
+}
+
+// The element force of the corotational tetrahedron (as largeStress, with its volume): R, the
+// frame (column-major); f, the nodal forces -V R^T sigma g_k.
+template <class T>
+__attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const T* X, const T* G, const T& volume,
+                                                      const T& lambda, const T& mu, T (&R)[9], T (&f)[4][3]) {
+  T ex[3], ey[3], ez[3], s[6];
+  largeStress(p, X, G, lambda, mu, ex, ey, ez, s);
+  for (int c = 0; c < 3; ++c) {
+    R[3 * c] = ex[c];
+    R[3 * c + 1] = ey[c];
+    R[3 * c + 2] = ez[c];
+  }
   for (int k = 0; k < 4; ++k) {
     const T* g = G + 3 * k;
-    const T l0 = -volume * (s00 * g[0] + s01 * g[1] + s02 * g[2]);
-    const T l1 = -volume * (s01 * g[0] + s11 * g[1] + s12 * g[2]);
-    const T l2 = -volume * (s02 * g[0] + s12 * g[1] + s22 * g[2]);
+    const T l0 = -volume * (s[0] * g[0] + s[3] * g[1] + s[4] * g[2]);
+    const T l1 = -volume * (s[3] * g[0] + s[1] * g[1] + s[5] * g[2]);
+    const T l2 = -volume * (s[4] * g[0] + s[5] * g[1] + s[2] * g[2]);
     for (int r = 0; r < 3; ++r) f[k][r] = l0 * ex[r] + l1 * ey[r] + l2 * ez[r];
+  }
+}
+
+// The von Mises stress of sigma (largeStress's entries), squared.
+template <class T>
+__attribute__((always_inline)) inline T vonMisesSquared(const T (&s)[6]) {
+  const T a = s[0] - s[1], b = s[1] - s[2], c = s[2] - s[0];
+  return 0.5 * (a * a + b * b + c * c) + 3.0 * (s[3] * s[3] + s[5] * s[5] + s[4] * s[4]);
+}
+
+using VonMisesKernel = void (*)(const double*, const int*, int, const ElementRest*, const double*, double*);
+
+void largeVonMisesGeneric(const double* x, const int* tets, int count, const ElementRest* rest, const double*, double* out) {
+  for (int e = 0; e < count; ++e) {
+    const ElementRest& r = rest[e];
+    double p[4][3], ex[3], ey[3], ez[3], s[6];
+    for (int k = 0; k < 4; ++k)
+      for (int c = 0; c < 3; ++c) p[k][c] = x[3 * static_cast<long>(tets[4 * e + k]) + c];
+    largeStress(p, r.X.data(), r.G.data(), r.lame.lambda, r.lame.mu, ex, ey, ez, s);
+    out[e] = std::sqrt(vonMisesSquared(s));
   }
 }
 
@@ -244,6 +280,25 @@ __attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int
   }
   invertedGeneric(x, tets, e, end, rest, bad);
 }
+
+__attribute__((target("avx2,fma"))) void largeVonMisesAvx2(const double* x, const int* tets, int count, const ElementRest* rest,
+                                                           const double* lanes, double* out) {
+  int e = 0;
+  for (; e + 4 <= count; e += 4) {
+    const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
+    Lanes in[kLaneFields], p[4][3], ex[3], ey[3], ez[3], s[6];
+    for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
+    const int* t = tets + 4 * e;
+    for (int k = 0; k < 4; ++k)
+      for (int r = 0; r < 3; ++r)
+        p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
+                        x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
+    largeStress(p, in, in + 12, in[25], in[26], ex, ey, ez, s);
+    const Lanes v = vonMisesSquared(s);
+    for (int l = 0; l < 4; ++l) out[e + l] = std::sqrt(v[l]);
+  }
+  largeVonMisesGeneric(x, tets + 4 * e, count - e, rest + e, nullptr, out + e);
+}
 #endif
 
 // Chosen once, on first use.
@@ -252,12 +307,14 @@ struct Kernels {
   BlocksKernel blocks = blocksRangeGeneric;
   ForcesKernel forces = largeForcesGeneric;
   InvertedKernel inverted = invertedGeneric;
+  VonMisesKernel vonMises = largeVonMisesGeneric;
   Kernels() {
 #if defined(__x86_64__)
     if ((avx2 = useAvx2())) {
       blocks = blocksRangeAvx2;
       forces = largeForcesAvx2;
       inverted = invertedAvx2;
+      vonMises = largeVonMisesAvx2;
     }
 #endif
   }
@@ -273,6 +330,11 @@ const Kernels& kernels() {
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
                          int first, int count, double kFactor, double* values) {
   kernels().blocks(rest.data(), R->data(), slots->data(), first, count, kFactor, values);
+}
+
+void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector<ElementRest>& rest,
+                             const std::vector<double>& lanes, double* out) {
+  kernels().vonMises(x, tets, static_cast<int>(rest.size()), rest.data(), lanes.data(), out);
 }
 
 std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest) {

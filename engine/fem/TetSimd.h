@@ -30,6 +30,12 @@ std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest);
 void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
                               const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f);
 
+// The von Mises stress of every corotational ("large") element at positions x (fem::vonMises of
+// fem::stress in SOFA's edge frame, as the step computes it), four elements at a time in the
+// vector version: out[e] for each element of rest (tets: 4 per element).
+void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector<ElementRest>& rest,
+                             const std::vector<double>& lanes, double* out);
+
 // The elements whose orientation at x (3 x n) differs from their rest orientation (ElementRest::
 // sign), or is degenerate: the health check after each step, four elements at a time.
 std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);

@@ -184,9 +184,22 @@ Eigen::VectorXd vonMisesOf(fem::Method method, const TetList& tets, const std::v
 
 }  // namespace
 
-Eigen::VectorXd TetrahedronFEMForceField::vonMises(const Eigen::Matrix3Xd& x) const { return vonMisesOf(method_, tets_, rest_, x); }
+Eigen::VectorXd TetrahedronFEMForceField::vonMises(const Eigen::Matrix3Xd& x) const {
+  if (lanes_.empty()) return vonMisesOf(method_, tets_, rest_, x);
+  Eigen::VectorXd out(tets_.cols());
+  fem::largeTetrahedraVonMises(x.data(), tets_.data(), rest_, lanes_, out.data());
+  return out;
+}
 
 std::function<Eigen::VectorXd(const Eigen::Matrix3Xd&)> TetrahedronFEMForceField::vonMisesFunction() const {
+  // The corotational elements through the step's vector kernel (an exporter computes this every
+  // frame), the others element by element.
+  if (!lanes_.empty())
+    return [tets = tets_, rest = rest_, lanes = lanes_](const Eigen::Matrix3Xd& x) {
+      Eigen::VectorXd out(tets.cols());
+      fem::largeTetrahedraVonMises(x.data(), tets.data(), rest, lanes, out.data());
+      return out;
+    };
   return [method = method_, tets = tets_, rest = rest_](const Eigen::Matrix3Xd& x) { return vonMisesOf(method, tets, rest, x); };
 }
 

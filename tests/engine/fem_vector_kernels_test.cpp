@@ -98,6 +98,38 @@ TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
 
 // 13 elements (three groups of four and one alone), some turned inside out by moving a node
 // through node 0, one with no volume.
+// Eleven elements on their own nodes (two groups of four in the lanes, three one by one), each
+// turned and strained at random: the von Mises stress of each against the Eigen definition
+// (fem::vonMises of fem::stress in SOFA's edge frame).
+TEST(VectorKernels, VonMisesMatchesTheEigenKernel) {
+  SCOPED_TRACE(fem::tetrahedronKernelsVersion());
+  const int n = 11;
+  std::vector<fem::ElementRest> rest;
+  Eigen::Matrix3Xd X(3, 4 * n);
+  std::vector<int> tets;
+  std::vector<double> expected;
+  for (int e = 0; e < n; ++e) {
+    const fem::Mat34 r = randomTetrahedron();
+    rest.push_back(fem::restElement(fem::Method::Large, r, fem::Lame::fromYoungPoisson(uniform(1e3, 1e6), uniform(0.1, 0.49))));
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(uniform(-3, 3), Eigen::Vector3d::Random().normalized()).toRotationMatrix();
+    fem::Mat34 x = turn * r;
+    for (int i = 0; i < 12; ++i) x.data()[i] += uniform(-0.1, 0.1);
+    // Stored in reverse node order in the state: the kernel gathers through the indices.
+    for (int k = 0; k < 4; ++k) {
+      X.col(4 * n - 1 - (4 * e + k)) = x.col(k);
+      tets.push_back(4 * n - 1 - (4 * e + k));
+    }
+    const Eigen::Matrix3d R = fem::frame(fem::Method::Large, x);
+    expected.push_back(fem::vonMises(fem::stress(rest.back(), fem::localPositions(fem::Method::Large, R, x) - rest.back().X)));
+  }
+  std::vector<double> vm(n, -1.0);
+  fem::largeTetrahedraVonMises(X.data(), tets.data(), rest, fem::largeTetrahedraLanes(rest), vm.data());
+  for (int e = 0; e < n; ++e) {
+    EXPECT_GT(expected[e], 0.0);
+    EXPECT_LE(std::abs(vm[e] - expected[e]), 1e-12 * expected[e]) << "element " << e;
+  }
+}
+
 TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
   const int count = 13;
   Eigen::Matrix3Xd x(3, 4 * count);
