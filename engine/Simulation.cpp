@@ -1,5 +1,7 @@
 #include "engine/Simulation.h"
 
+#include <exception>
+
 #include "engine/collision/Collision.h"
 
 #include <mutex>
@@ -111,7 +113,17 @@ std::optional<Diverged> Simulation::step() {
 void Simulation::end() {
   if (ended_) return;
   ended_ = true;
-  for (Observer* o : observers_) o->end(state_, state_.time, state_.steps);
+  // Every observer ends, even after one fails (an exporter's write error must not cost another
+  // its finished series); the first error is reported.
+  std::exception_ptr first;
+  for (Observer* o : observers_) {
+    try {
+      o->end(state_, state_.time, state_.steps);
+    } catch (...) {
+      if (!first) first = std::current_exception();
+    }
+  }
+  if (first) std::rethrow_exception(first);
 }
 
 void Simulation::restoreState(const State& s) {

@@ -81,9 +81,12 @@ int cmdRun(const RunCommand& o) {
   for (const auto& [path, option] : outputs) {
     if (path.empty()) continue;
     // A file inside --out may name that folder before the run makes it (as `make demo` does).
+    const auto folder = [](std::filesystem::path p) {  // "out/demo/" and "out/demo" alike
+      p = p.lexically_normal();
+      return p.has_filename() ? p : p.parent_path();
+    };
     const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-    const bool insideNewOut = !o.out.empty() && parent.lexically_normal() == std::filesystem::path(o.out).lexically_normal() &&
-                              !std::filesystem::exists(parent);
+    const bool insideNewOut = !o.out.empty() && folder(parent) == folder(o.out) && !std::filesystem::exists(parent);
     if (!insideNewOut) cli::requireParentFolder(path, option);
   }
   std::unique_ptr<tbb::global_control> threads;

@@ -64,6 +64,9 @@ void SeriesExporter::init() {
 }
 
 void SeriesExporter::begin(const State& s, double t) {
+  // The frames an earlier run left queued (one that ended with an exception) are written first:
+  // the writer reads the members set below.
+  queue_.reset();
   // Unnamed, a surface exporter takes the visual model's name so that it does not share its
   // series with the body's exporter.
   const std::string fallback = visual_ ? visual_->name() : name();
@@ -91,7 +94,6 @@ void SeriesExporter::begin(const State& s, double t) {
   }
   lastStep_ = -1;
   kept_ = Frame{};
-  queue_.reset();
   startSeries();
   queue_ = std::make_unique<BackgroundQueue>();
   if (attrs_.boolean("exportAtBegin")) write(t, 0, current(s));
@@ -105,12 +107,12 @@ void SeriesExporter::observe(const State& s, double t, int step) {
 
 void SeriesExporter::diverged(const State&, double t, int step) {
   // The state now holds the failed step: the last good one is written from its copy.
-  if (lastStep_ != step && kept_.step == step) write(t, step, kept_);
+  if (queue_ && lastStep_ != step && kept_.step == step) write(t, step, kept_);
 }
 
 void SeriesExporter::end(const State& s, double t, int step) {
+  if (!queue_) return;  // begin() failed: nothing was started
   if (attrs_.boolean("exportAtEnd") && lastStep_ != step) write(t, step, current(s));
-  if (!queue_) return;
   queue_->submit([this] { finishSeries(); });
   queue_->flush();  // every frame on disk, or the first write error
 }
@@ -137,6 +139,7 @@ void SeriesExporter::keep(const State& s, int step) {
 // Frames are encoded, compressed and written beside the run, in order (a run's step goes on
 // meanwhile); a write error comes back at the next frame or at the end.
 void SeriesExporter::write(double t, int step, Frame fr) {
+  if (!queue_) return;  // begin() failed
   lastStep_ = step;
   queue_->submit([this, t, step, fr = std::move(fr)] { writeFrame(t, step, fr); });
 }

@@ -7,9 +7,9 @@
 
 #include <cstdio>
 #include <cstring>
-#include <functional>
+#include <atomic>
+#include <cmath>
 #include <mutex>
-#include <thread>
 
 #include "core/Error.h"
 
@@ -122,8 +122,10 @@ ExodusWriter::ExodusWriter(const std::string& path, const ExodusLayout& layout) 
 
   // Named like writeFileAtomic's temporaries, so that a run killed mid-series leaves one that the
   // next run holding the folder removes.
-  temporary_ = path + ".tmp." + std::to_string(::getpid()) + "." +
-               std::to_string(std::hash<std::thread::id>()(std::this_thread::get_id()) % 1000000);
+  // The second number is this process's count of series, so that two writers of one name in one
+  // thread (two exporters with the same filename) never share a temporary.
+  static std::atomic<unsigned> series{0};
+  temporary_ = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(series++ % 1000000);
   std::lock_guard<std::mutex> lock(libraryLock());
   quiet();
   int computeWordSize = 8, ioWordSize = layout.float32 ? 4 : 8;
@@ -226,6 +228,11 @@ void ExodusWriter::finish() {
 // ---------------------------------------------------------------------------------------------
 
 namespace {
+// What the file says that cannot be read as a series (no library error involved).
+[[noreturn]] void badFile(const std::string& path, const std::string& what) {
+  throw Error(SourceLoc{path}, "cannot read the Exodus file: " + what);
+}
+// A library call that failed, with the library's own message.
 [[noreturn]] void failRead(const std::string& path, const std::string& what) {
   const char *msg = nullptr, *func = nullptr;
   int code = 0;
@@ -262,9 +269,9 @@ ExodusReader::ExodusReader(const std::string& path) : path_(path) {
     int64_t dim = 0, nodes = 0, elems = 0, blocks = 0, nsets = 0, ssets = 0;
     ex_set_int64_status(file_, EX_ALL_INT64_API);
     if (ex_get_init(file_, title, &dim, &nodes, &elems, &blocks, &nsets, &ssets) < 0) failRead(path, "its sizes");
-    if (dim != 3) failRead(path, "it has " + std::to_string(dim) + " dimensions, 3 expected");
-    if (blocks != 1) failRead(path, "it has " + std::to_string(blocks) + " cell blocks, 1 expected (as Viscera writes it)");
-    if (nodes <= 0 || nodes > 10'000'000) failRead(path, "its node count " + std::to_string(nodes) + " is out of range");
+    if (dim != 3) badFile(path, "it has " + std::to_string(dim) + " dimensions, 3 expected");
+    if (blocks != 1) badFile(path, "it has " + std::to_string(blocks) + " cell blocks, 1 expected (as Viscera writes it)");
+    if (nodes <= 0 || nodes > 10'000'000) badFile(path, "its node count " + std::to_string(nodes) + " is out of range");
     Eigen::VectorXd c[3];
     for (auto& v : c) v.resize(nodes);
     if (ex_get_coord(file_, c[0].data(), c[1].data(), c[2].data()) < 0) failRead(path, "its coordinates");
@@ -276,10 +283,12 @@ ExodusReader::ExodusReader(const std::string& path) : path_(path) {
     char type[MAX_STR_LENGTH + 1] = {};
     int64_t count = 0, per = 0, edges = 0, faces = 0, attrs = 0;
     if (ex_get_block(file_, EX_ELEM_BLOCK, id, type, &count, &per, &edges, &faces, &attrs) < 0) failRead(path, "its cell block");
+    if (count < 0 || count > 100'000'000 || per < 1 || per > 8)
+      badFile(path, "its cell block has " + std::to_string(count) + " cells of " + std::to_string(per) + " nodes");
     std::vector<int64_t> conn(static_cast<size_t>(count * per));
     if (count > 0 && ex_get_conn(file_, EX_ELEM_BLOCK, id, conn.data(), nullptr, nullptr) < 0) failRead(path, "its connectivity");
     for (int64_t v : conn)
-      if (v < 1 || v > nodes) failRead(path, "a cell names node " + std::to_string(v) + " of " + std::to_string(nodes));
+      if (v < 1 || v > nodes) badFile(path, "a cell names node " + std::to_string(v) + " of " + std::to_string(nodes));
     const std::string t = type;
     if (t.rfind("TET", 0) == 0 && per == 4) {
       mesh_.tets.resize(4, count);
@@ -290,12 +299,17 @@ ExodusReader::ExodusReader(const std::string& path) : path_(path) {
       for (int64_t e = 0; e < count; ++e)
         for (int k = 0; k < 3; ++k) mesh_.triangles(k, e) = static_cast<int>(conn[e * 3 + k] - 1);
     } else if (!(t.rfind("SPHERE", 0) == 0 && per == 1)) {
-      failRead(path, "its cells are " + t + " with " + std::to_string(per) + " nodes (tetrahedra, triangles or points expected)");
+      badFile(path, "its cells are " + t + " with " + std::to_string(per) + " nodes (tetrahedra, triangles or points expected)");
     }
     const int64_t steps = ex_inquire_int(file_, EX_INQ_TIME);
     if (steps < 0) failRead(path, "its number of frames");
+    if (steps > 100'000'000) badFile(path, "it claims " + std::to_string(steps) + " frames");
     times_.resize(static_cast<size_t>(steps));
     if (steps > 0 && ex_get_all_times(file_, times_.data()) < 0) failRead(path, "its times");
+    for (size_t i = 0; i < times_.size(); ++i)
+      if (!std::isfinite(times_[i]) || (i > 0 && !(times_[i] > times_[i - 1])))
+        badFile(path, "frame " + std::to_string(i) + "'s time " + std::to_string(times_[i]) +
+                          " is not finite or not after the frame before");
     nodeVars_ = variableNames(file_, EX_NODAL, path);
     cellVars_ = variableNames(file_, EX_ELEM_BLOCK, path);
   } catch (...) {

@@ -25,8 +25,8 @@ struct ExodusLayout {
   int compressionLevel = 1;                        // zlib level 1..9
 };
 
-// Writes a series frame by frame into a temporary file beside `path` (PATH.tmp.PID.TID, removed by
-// the next run that holds the folder if this process dies), which finish() closes and renames to
+// Writes a series frame by frame into a temporary file beside `path` (PATH.tmp.PID.N, which the
+// next run holding the folder removes if this process dies), which finish() closes and renames to
 // `path`: readers see the whole series or the file that was there before. Destroyed unfinished
 // (an error during the run), the temporary goes. Not for concurrent use of one object; separate
 // writers in separate threads are safe (calls into the library are serialised).

@@ -96,8 +96,6 @@ TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
   }
 }
 
-// 13 elements (three groups of four and one alone), some turned inside out by moving a node
-// through node 0, one with no volume.
 // Eleven elements on their own nodes (two groups of four in the lanes, three one by one), each
 // turned and strained at random: the von Mises stress of each against the Eigen definition
 // (fem::vonMises of fem::stress in SOFA's edge frame).
@@ -130,6 +128,8 @@ TEST(VectorKernels, VonMisesMatchesTheEigenKernel) {
   }
 }
 
+// 13 elements (three groups of four and one alone), some turned inside out by moving a node
+// through node 0, one with no volume.
 TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
   const int count = 13;
   Eigen::Matrix3Xd x(3, 4 * count);

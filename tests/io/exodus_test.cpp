@@ -251,6 +251,51 @@ TEST(Exodus, ExporterWritesTheStateOfEachExportedStep) {
   }
 }
 
+// Exporters end one after another: one whose series cannot be put in place (its name is now a
+// folder) reports that, and the others still finish theirs.
+TEST(Exodus, OneExportersFailureDoesNotCostAnotherItsSeries) {
+  const TempDir dir("viscera_exo");
+  spit(dir.path() / "scene.xml", R"(<Node name="root" dt="0.01" gravity="0 -9 0">
+    <Node name="cube">
+        <EulerImplicitSolver/>
+        <CGLinearSolver iterations="25" tolerance="1e-9" threshold="1e-20"/>
+        <RegularGridTopology name="grid" n="3 3 3" min="0 0 0" max="1 1 1"/>
+        <MechanicalObject name="dofs"/>
+        <TetrahedronSetTopologyContainer name="tetra"/>
+        <Hexa2TetraTopologicalMapping input="@grid" output="@tetra"/>
+        <DiagonalMass massDensity="1"/>
+        <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="large"/>
+        <BoxROI name="clamp" box="-1 -1 -1 2 2 0.1"/>
+        <FixedConstraint indices="@clamp.indices"/>
+        <ExodusExporter filename="a"/>
+        <ExodusExporter filename="b"/>
+    </Node>
+</Node>
+)");
+  auto scene = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
+  scene->setOutputDirectory(dir / "out");
+  viscera::Simulation sim(*scene);
+  sim.begin();
+  for (int i = 0; i < 2; ++i) ASSERT_FALSE(sim.step());
+  fs::create_directory(dir.path() / "out" / "a.exo");
+  EXPECT_CONTAINS(errorOf([&] { sim.end(); }), "a.exo");
+  EXPECT_EQ(ExodusReader(dir / "out/b.exo").times().size(), 3u);
+  for (const auto& e : fs::directory_iterator(dir.path() / "out"))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+// A file whose frames do not follow each other in time is refused.
+TEST(Exodus, FramesOutOfTimeOrderAreRefused) {
+  const TempDir dir("viscera_exo");
+  const ExodusLayout l = gridLayout(false);
+  {
+    ExodusWriter w(dir / "s.exo", l);
+    for (double t : {0.0, 0.2, 0.1}) w.append(t, {displacementAt(l, 0), displacementAt(l, 1)}, {stressAt(l, 0)});
+    w.finish();
+  }
+  EXPECT_CONTAINS(errorOf([&] { ExodusReader(dir / "s.exo"); }), "frame 2's time");
+}
+
 // VTK's own Exodus reader (python3-vtk9) opens the series, finds the frames and fields, and moves
 // the nodes by the displacement.
 TEST(Exodus, VtkReaderOpensTheSeries) {
