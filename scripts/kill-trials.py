@@ -37,13 +37,15 @@ def readable_vtu(path):
     return reader.GetErrorCode() == 0 and grid is not None and grid.GetNumberOfPoints() > 0
 
 
-def readable_exo(path):
+def exo_frames(path):
+    """The number of frames VTK's reader finds in an Exodus series (0: unreadable or empty)."""
     reader = vtk.vtkExodusIIReader()
     reader.SetFileName(path)
     reader.UpdateInformation()
     reader.Update()
     blocks = reader.GetOutput()
-    return reader.GetNumberOfTimeSteps() > 0 and blocks is not None and blocks.GetNumberOfPoints() > 0
+    ok = blocks is not None and blocks.GetNumberOfPoints() > 0
+    return reader.GetNumberOfTimeSteps() if ok else 0
 
 
 def check(out, wrench, summary, sig, rc):
@@ -77,9 +79,12 @@ def check(out, wrench, summary, sig, rc):
     exos = [f for f in files if f.endswith(".exo")]
     if sig != "KILL" and not exos and any(".exo.tmp." in f for f in files):
         problems.append("the Exodus series was not put in place")
+    frames = len(vtus)
     for f in exos:
-        if not readable_exo(os.path.join(out, f)):
+        n = exo_frames(os.path.join(out, f))
+        if n == 0:
             problems.append(f"{f} is unreadable")
+        frames += n
     table = wrench if os.path.exists(wrench) else wrench + ".partial"
     rows = 0
     if os.path.exists(table):
@@ -103,7 +108,7 @@ def check(out, wrench, summary, sig, rc):
             problems.append(f"summary status {status}")
         if rc != 128 + getattr(signal, "SIG" + sig):
             problems.append(f"exit code {rc}")
-    return problems, len(vtus), rows, temporaries
+    return problems, frames, rows, temporaries
 
 
 def default_signals():
