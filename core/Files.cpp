@@ -122,7 +122,7 @@ std::string ownCommandLine() {
 }
 
 // With the folder held, no other run writes into it: a temporary of writeFileAtomic still there
-// (NAME.tmp.PID.TID) was left by a run killed mid-write, and goes.
+// (NAME.tmp.PID.N) was left by a run killed mid-write, and goes.
 void removeStaleTemporaries(const std::string& folder) {
   std::error_code ec;
   for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {

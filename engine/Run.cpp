@@ -60,31 +60,41 @@ RunResult runLoop(Simulation& sim, const RunOptions& o) {
   sim.begin();
   for (RunObserver* ob : o.observers) ob->begin(sim, total);
   const int first = sim.steps();
-  for (int i = 0; i < total; ++i) {
-    if ((r.failure = sim.step())) break;
-    for (size_t k = 0; k < bodies.size(); ++k) {
-      const RigidObject::Live& b = bodies[k]->live(sim.state());
-      RunResult::Instrument& in = r.instruments[k];
-      in.last = {sim.time(), b.force, b.torque, b.contacts};
-      if (b.force.norm() > in.peakForce) {
-        in.peakForce = b.force.norm();
-        in.peakForceTime = sim.time();
+  try {
+    for (int i = 0; i < total; ++i) {
+      if ((r.failure = sim.step())) break;
+      for (size_t k = 0; k < bodies.size(); ++k) {
+        const RigidObject::Live& b = bodies[k]->live(sim.state());
+        RunResult::Instrument& in = r.instruments[k];
+        in.last = {sim.time(), b.force, b.torque, b.contacts};
+        if (b.force.norm() > in.peakForce) {
+          in.peakForce = b.force.norm();
+          in.peakForceTime = sim.time();
+        }
+        in.stepsInContact += b.contacts > 0;
+        if (o.recordWrench) in.history.push_back(in.last);
       }
-      in.stepsInContact += b.contacts > 0;
-      if (o.recordWrench) in.history.push_back(in.last);
-    }
-    for (RunObserver* ob : o.observers) ob->step(sim);
-    bool interrupted = false;
-    for (RunObserver* ob : o.observers)
-      if (auto why = ob->stopReason()) {
-        r.stopReason = *why;
-        interrupted = ob->interrupts();
+      for (RunObserver* ob : o.observers) ob->step(sim);
+      bool interrupted = false;
+      for (RunObserver* ob : o.observers)
+        if (auto why = ob->stopReason()) {
+          r.stopReason = *why;
+          interrupted = ob->interrupts();
+          break;
+        }
+      if (!r.stopReason.empty()) {
+        r.status = interrupted ? RunResult::Status::Interrupted : RunResult::Status::Stopped;
         break;
       }
-    if (!r.stopReason.empty()) {
-      r.status = interrupted ? RunResult::Status::Interrupted : RunResult::Status::Stopped;
-      break;
     }
+  } catch (...) {
+    // An error mid-run (an exporter's write error, an observer's): the other observers still end,
+    // so that their outputs are finished, and the first error is the one reported.
+    try {
+      sim.end();
+    } catch (...) {
+    }
+    throw;
   }
   sim.end();
   r.wallSeconds = now() - t0;

@@ -101,6 +101,7 @@ void SeriesExporter::begin(const State& s, double t) {
 }
 
 void SeriesExporter::observe(const State& s, double t, int step) {
+  if (!queue_) return;  // begin() failed
   if (every_ > 0 && step % every_ == 0) write(t, step, current(s));
   else keep(s, step);
 }
@@ -111,10 +112,12 @@ void SeriesExporter::diverged(const State&, double t, int step) {
 }
 
 void SeriesExporter::end(const State& s, double t, int step) {
-  if (!queue_) return;  // begin() failed: nothing was started
+  if (!queue_) return;  // begin() failed, or this run has ended already
   if (attrs_.boolean("exportAtEnd") && lastStep_ != step) write(t, step, current(s));
-  queue_->submit([this] { finishSeries(); });
-  queue_->flush();  // every frame on disk, or the first write error
+  // The queue goes with this run: a later end() without a begin() writes nothing.
+  const std::unique_ptr<BackgroundQueue> queue = std::move(queue_);
+  queue->submit([this] { finishSeries(); });
+  queue->flush();  // every frame on disk, or the first write error
 }
 
 SeriesExporter::Frame SeriesExporter::current(const State& s) const {
