@@ -152,20 +152,28 @@ void largeForcesGeneric(const double* x, const int* tets, int first, int count, 
 
 #if defined(__x86_64__)
 // Groups of four elements starting at a multiple of four run in the lanes; the rest one by one.
+// The group of four elements starting at e (a multiple of four): their rest data from the lanes
+// and their nodes' positions, one element per lane.
+__attribute__((target("avx2,fma"), always_inline)) inline void loadGroup(const double* x, const int* tets, const double* lanes,
+                                                                         int e, Lanes (&in)[kLaneFields], Lanes (&p)[4][3]) {
+  const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
+  for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
+  const int* t = tets + 4 * e;
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r)
+      p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
+                      x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
+}
+
 __attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const int* tets, int first, int count,
                                                          const ElementRest* rest, const double* lanes, double* R, double* f) {
   const int end = first + count;
   int e = first;
   for (; e < end; ++e) {
     if (e % 4 == 0 && e + 4 <= end) {
-      const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
       Lanes in[kLaneFields], p[4][3], Rl[9], fl[4][3];
-      for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
+      loadGroup(x, tets, lanes, e, in, p);
       const int* t = tets + 4 * e;
-      for (int k = 0; k < 4; ++k)
-        for (int r = 0; r < 3; ++r)
-          p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
-                          x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
       largeForce(p, in, in + 12, in[24], in[25], in[26], Rl, fl);
       for (int l = 0; l < 4; ++l) {
         double* Re = R + 9 * static_cast<long>(e + l);
@@ -285,14 +293,8 @@ __attribute__((target("avx2,fma"))) void largeVonMisesAvx2(const double* x, cons
                                                            const double* lanes, double* out) {
   int e = 0;
   for (; e + 4 <= count; e += 4) {
-    const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
     Lanes in[kLaneFields], p[4][3], ex[3], ey[3], ez[3], s[6];
-    for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
-    const int* t = tets + 4 * e;
-    for (int k = 0; k < 4; ++k)
-      for (int r = 0; r < 3; ++r)
-        p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
-                        x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
+    loadGroup(x, tets, lanes, e, in, p);
     largeStress(p, in, in + 12, in[25], in[26], ex, ey, ez, s);
     const Lanes v = vonMisesSquared(s);
     for (int l = 0; l < 4; ++l) out[e + l] = std::sqrt(v[l]);

@@ -85,6 +85,27 @@ void writeSeries(const std::string& path, const ExodusLayout& l, int frames) {
   w.finish();
 }
 
+// A cube of n^3 nodes clamped at its base and sagging under gravity, with `exporters` in its node.
+std::string sagScene(int n, const std::string& exporters) {
+  const std::string nodes = std::to_string(n) + " " + std::to_string(n) + " " + std::to_string(n);
+  return R"(<Node name="root" dt="0.01" gravity="0 -9 0">
+    <Node name="cube">
+        <EulerImplicitSolver/>
+        <CGLinearSolver iterations="25" tolerance="1e-9" threshold="1e-20"/>
+        <RegularGridTopology name="grid" n=")" + nodes + R"(" min="0 0 0" max="1 1 1"/>
+        <MechanicalObject name="dofs"/>
+        <TetrahedronSetTopologyContainer name="tetra"/>
+        <Hexa2TetraTopologicalMapping input="@grid" output="@tetra"/>
+        <DiagonalMass massDensity="1"/>
+        <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="large"/>
+        <BoxROI name="clamp" box="-1 -1 -1 2 2 0.1"/>
+        <FixedConstraint indices="@clamp.indices"/>
+        )" + exporters + R"(
+    </Node>
+</Node>
+)";
+}
+
 bool noTemporaries(const TempDir& dir) {
   for (const auto& e : fs::directory_iterator(dir.path()))
     if (e.path().filename().string().find(".tmp.") != std::string::npos) return false;
@@ -205,23 +226,8 @@ TEST(Exodus, ReaderRefusesWhatIsNotAnExodusSeries) {
 // the first run's file.
 TEST(Exodus, ExporterWritesTheStateOfEachExportedStep) {
   const TempDir dir("viscera_exo");
-  spit(dir.path() / "scene.xml", R"(<Node name="root" dt="0.01" gravity="0 -9 0">
-    <Node name="cube">
-        <EulerImplicitSolver/>
-        <CGLinearSolver iterations="25" tolerance="1e-9" threshold="1e-20"/>
-        <RegularGridTopology name="grid" n="4 4 4" min="0 0 0" max="1 1 1"/>
-        <MechanicalObject name="dofs"/>
-        <TetrahedronSetTopologyContainer name="tetra"/>
-        <Hexa2TetraTopologicalMapping input="@grid" output="@tetra"/>
-        <DiagonalMass massDensity="1"/>
-        <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="large"/>
-        <BoxROI name="clamp" box="-1 -1 -1 2 2 0.1"/>
-        <FixedConstraint indices="@clamp.indices"/>
-        <ExodusExporter filename="cube.exo" exportEveryNumberOfSteps="2" precision="float64"/>
-        <ExodusExporter name="motion" fields="velocity"/>
-    </Node>
-</Node>
-)");
+  spit(dir.path() / "scene.xml", sagScene(4, R"(<ExodusExporter filename="cube.exo" exportEveryNumberOfSteps="2" precision="float64"/>
+        <ExodusExporter name="motion" fields="velocity"/>)"));
   auto scene = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   scene->setOutputDirectory(dir / "out");
   const auto* dofs = scene->all<viscera::MechanicalObject>().front();
@@ -255,23 +261,7 @@ TEST(Exodus, ExporterWritesTheStateOfEachExportedStep) {
 // folder) reports that, and the others still finish theirs.
 TEST(Exodus, OneExportersFailureDoesNotCostAnotherItsSeries) {
   const TempDir dir("viscera_exo");
-  spit(dir.path() / "scene.xml", R"(<Node name="root" dt="0.01" gravity="0 -9 0">
-    <Node name="cube">
-        <EulerImplicitSolver/>
-        <CGLinearSolver iterations="25" tolerance="1e-9" threshold="1e-20"/>
-        <RegularGridTopology name="grid" n="3 3 3" min="0 0 0" max="1 1 1"/>
-        <MechanicalObject name="dofs"/>
-        <TetrahedronSetTopologyContainer name="tetra"/>
-        <Hexa2TetraTopologicalMapping input="@grid" output="@tetra"/>
-        <DiagonalMass massDensity="1"/>
-        <TetrahedronFEMForceField youngModulus="1000" poissonRatio="0.3" method="large"/>
-        <BoxROI name="clamp" box="-1 -1 -1 2 2 0.1"/>
-        <FixedConstraint indices="@clamp.indices"/>
-        <ExodusExporter filename="a"/>
-        <ExodusExporter filename="b"/>
-    </Node>
-</Node>
-)");
+  spit(dir.path() / "scene.xml", sagScene(3, R"(<ExodusExporter filename="a"/> <ExodusExporter filename="b"/>)"));
   auto scene = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
   scene->setOutputDirectory(dir / "out");
   viscera::Simulation sim(*scene);
