@@ -19,6 +19,7 @@
 #include "core/Scene.h"
 #include "engine/Simulation.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/topology/GridSplit.h"
 #include "io/mesh/Exodus.h"
 #include "io/scene/SceneReader.h"
 #include "tests/support/ErrorOf.h"
@@ -41,23 +42,8 @@ namespace {
 // A 4 x 3 x 3 grid split into tetrahedra, with fields that vary by node, cell and frame.
 ExodusLayout gridLayout(bool float32) {
   ExodusLayout l;
-  const int nx = 4, ny = 3, nz = 3;
-  auto id = [&](int i, int j, int k) { return i + nx * (j + ny * k); };
-  l.rest.resize(3, nx * ny * nz);
-  for (int k = 0; k < nz; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) l.rest.col(id(i, j, k)) = Eigen::Vector3d(0.1 * i, 0.07 * j + 0.001, 0.05 * k);
-  std::vector<Eigen::Vector4i> tets;
-  for (int k = 0; k + 1 < nz; ++k)
-    for (int j = 0; j + 1 < ny; ++j)
-      for (int i = 0; i + 1 < nx; ++i) {
-        const int c[8] = {id(i, j, k),     id(i + 1, j, k),     id(i + 1, j + 1, k),     id(i, j + 1, k),
-                          id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
-        static const int kSplit[6][4] = {{0, 5, 1, 6}, {0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6}, {0, 7, 4, 6}, {0, 4, 5, 6}};
-        for (const auto& t : kSplit) tets.emplace_back(c[t[0]], c[t[1]], c[t[2]], c[t[3]]);
-      }
-  l.tets.resize(4, static_cast<Eigen::Index>(tets.size()));
-  for (size_t t = 0; t < tets.size(); ++t) l.tets.col(static_cast<Eigen::Index>(t)) = tets[t];
+  l.rest = viscera::gridPoints({4, 3, 3}, Eigen::Vector3d(0, 0.001, 0), Eigen::Vector3d(0.3, 0.141, 0.1));
+  l.tets = viscera::splitHexahedra(viscera::gridHexahedra({4, 3, 3}), 3, 2, true);
   l.nodeVectors = {"displacement", "velocity"};
   l.cellScalars = {"vonMises"};
   l.float32 = float32;
