@@ -91,6 +91,7 @@ void writeFolderAtomically(const std::string& out, Write write) {
 struct SimulateOptions {
   std::string out, workspace = "full", scene, transform, instrument, depth;
   double duration = 60, rate = 1000, stiffness = 0;  // 0: the phantom's default
+  double step = robot::Excitation{}.step;
   std::uint64_t seed = 1;
   bool trocar = false, seal = false, phantom = false, noNoise = false, jacobian = false;
   int digits = 10;
@@ -119,6 +120,8 @@ int runSimulate(const SimulateOptions& o) {
   } else if (o.workspace != "full") {
     throw Error("--workspace: " + viscera::quoted(o.workspace) + " is neither full nor trocar");
   }
+  if (!(o.step > 0 && o.step <= 1)) throw Error("--step: must be in (0, 1] (a share of each joint's range)");
+  s.excitation.step = o.step;
   if (o.noNoise) s.measurement.makePerfect();
   if (!o.depth.empty()) {
     const std::vector<std::string> w = cli::words(o.depth);
@@ -172,6 +175,7 @@ int runSimulate(const SimulateOptions& o) {
                                 {"rate", o.rate},
                                 {"seed", o.seed},
                                 {"workspace", o.workspace},
+                                {"step", s.excitation.step},
                                 {"trocar", o.trocar},
                                 {"seal", o.seal},
                                 {"phantom", o.phantom ? "analytic half-space" : scene ? "the scene" : "none"},
@@ -465,6 +469,9 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   sim->add_option("--rate", s->rate, "samples per second")->capture_default_str();
   sim->add_option("--seed", s->seed, "random seed of the reference and the noise")->capture_default_str();
   sim->add_option("--workspace", s->workspace, "full (free space) or trocar (outer joints confined, as inside a patient)")->capture_default_str();
+  sim->add_option("--step", s->step, "largest move between waypoints, as a share of each joint's range (small: a random "
+                                     "walk; 1: anywhere, to cover the workspace in a short calibration recording)")
+      ->capture_default_str();
   sim->add_flag("--trocar", s->trocar, "the body wall holds the shaft near the remote centre");
   sim->add_flag("--seal", s->seal, "the cannula seal's friction on insertion and roll");
   sim->add_flag("--phantom", s->phantom, "a compliant phantom under the tool, palpated");

@@ -284,6 +284,8 @@ ArmRecording simulateArm(const ArmDynamics& arm, const ArmSimulationOptions& o,
       throw Error("arm simulation: the excitation range of joint " + std::to_string(i + 1) + " is not within its limits [" +
                   std::to_string(j.lower) + ", " + std::to_string(j.upper) + "]");
   }
+  if (!(o.excitation.step > 0 && o.excitation.step <= 1))
+    throw Error("arm simulation: the excitation's step must be in (0, 1] (a share of each joint's range)");
   if (o.phantom.enabled && std::abs(o.phantom.normal.norm() - 1) > 1e-6)
     throw Error("arm simulation: the phantom's normal is not a unit vector");
 

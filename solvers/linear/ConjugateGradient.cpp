@@ -34,13 +34,15 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
   if (jacobi) invDiag = problem.diagonal.unaryExpr([](double d) { return d != 0.0 ? 1.0 / d : 1.0; });
   double rho = 0, rhoPrev = 0;
   for (int it = 1; it <= o.maxIterations; ++it) {
-    info.relResidual = r.norm() / normb;
+    // One pass over r gives both the residual and, unpreconditioned, rho (norm() is this root).
+    const double rr = r.squaredNorm();
+    info.relResidual = std::sqrt(rr) / normb;
     if (info.relResidual <= o.tolerance) break;
     if (jacobi) {
       z = invDiag.cwiseProduct(r);
       rho = r.dot(z);
     } else {
-      rho = r.squaredNorm();
+      rho = rr;
     }
     if (it == 1) p = jacobi ? z : r;
     else p = (jacobi ? z : r) + (rho / rhoPrev) * p;

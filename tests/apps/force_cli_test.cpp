@@ -101,6 +101,14 @@ TEST(ForceCli, OutputFoldersNeverSwallowInputsOrOtherFiles) {
   EXPECT_EQ(r.rc, 2) << r;
   r = runViscera({"force", "simulate", dir / "s", "--duration", "1", "--digits", "40"});
   EXPECT_EQ(r.rc, 2) << r;
+  for (const char* step : {"0", "1.5"}) {
+    r = runViscera({"force", "simulate", dir / "s", "--duration", "1", "--step", step});
+    EXPECT_EQ(r.rc, 2) << r;
+    EXPECT_NE(r.err.find("--step"), std::string::npos) << r;
+  }
+  r = runViscera({"force", "simulate", dir / "s", "--duration", "1", "--step", "0.5"});
+  ASSERT_EQ(r.rc, 0) << r;
+  EXPECT_NE(slurp(fs::path(dir / "s") / "simulation.json").find("\"step\": 0.5"), std::string::npos);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // sample, tracks its reference, and its phantom pushes back with its stiffness times the depth.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "core/Error.h"
 #include "robot/dynamics/ArmSimulator.h"
 
@@ -99,6 +101,26 @@ TEST(ArmSimulator, FollowsItsReferenceAndRepeatsWithItsSeed) {
   for (int s = 0; s < a.samples(); ++s) EXPECT_TRUE(arm.chain().limitViolations(a.qTrue.row(s).transpose()).empty());
 }
 
+// The step bounds each move between waypoints: small steps stay near the start, a step of the
+// whole range reaches across the workspace in the same time.
+TEST(ArmSimulator, StepSetsHowFarTheMovesReach) {
+  const ArmDynamics arm = psmDynamics();
+  auto span = [&](double step) {
+    ArmSimulationOptions o = noiseless(30);
+    o.rate = 200;
+    o.excitation.step = step;
+    const ArmRecording r = simulateArm(arm, o);
+    Eigen::VectorXd s(2);
+    for (int i = 0; i < 2; ++i) s[i] = (r.qTrue.col(i).maxCoeff() - r.qTrue.col(i).minCoeff()) / (o.excitation.upper[i] - o.excitation.lower[i]);
+    return s;
+  };
+  const Eigen::VectorXd small = span(0.02), whole = span(1.0);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_LT(small[i], 0.25) << "joint " << i + 1;
+    EXPECT_GT(whole[i], 0.6) << "joint " << i + 1;
+  }
+}
+
 TEST(ArmSimulator, RejectsOptionsThatDoNotFitTheArm) {
   const ArmDynamics arm = psmDynamics();
   ArmSimulationOptions o = psmSimulationDefaults();
@@ -107,6 +129,11 @@ TEST(ArmSimulator, RejectsOptionsThatDoNotFitTheArm) {
   o = psmSimulationDefaults();
   o.excitation.upper[2] = 0.3;  // beyond the insertion limit
   EXPECT_THROW(simulateArm(arm, o), Error);
+  for (double step : {0.0, -0.1, 1.5, std::nan("")}) {
+    o = psmSimulationDefaults();
+    o.excitation.step = step;
+    EXPECT_THROW(simulateArm(arm, o), Error) << step;
+  }
 }
 
 }  // namespace
