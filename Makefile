@@ -45,7 +45,7 @@ models: build
 	bash scripts/make-models.sh $(BUILD_DIR)
 
 # The force-estimation figures of the user guide: simulated recordings, every model, evaluations
-# (about 25 minutes).
+# (about 30 minutes).
 force-figures: build
 	bash scripts/force-figures.sh $(BUILD_DIR)
 
