@@ -585,10 +585,13 @@ class GeneralMeshTopology : public Component, public Topology, public Tetrahedra
   bool filled_ = false;
 };
 
-// SOFA's SparseGridTopology: the cells of a regular grid over a closed surface's bounding box that
-// the surface crosses or encloses, as hexahedra. A cell is on the boundary when a triangle meets
-// it (separating-axis test), outside when it connects to the grid's border through cells the
-// surface does not meet, inside otherwise. Nodes are the kept cells' corners, in grid order.
+// SOFA's SparseGridTopology: the cells of a regular grid over a closed surface's bounding box (grown
+// by 1 % of its size on each side, as SOFA does) that the surface crosses or encloses, as
+// hexahedra. A cell is on the boundary when a triangle meets it (separating-axis test), outside
+// when it connects to the grid's border through cells the surface does not meet, inside otherwise.
+// Numbered as SOFA numbers them, so that indices in a SOFA scene name the same nodes: nodes are the
+// kept cells' corners sorted by position (x, then y, then z); hexahedra are the boundary cells,
+// then the inside cells, each in grid order.
 class SparseGridTopology : public Component, public Topology {
  public:
   using Component::Component;
@@ -599,29 +602,33 @@ class SparseGridTopology : public Component, public Topology {
     for (int a = 0; a < 3; ++a)
       if (n[a] < 2) throw error("n", "needs at least 2 nodes per axis (one cell)");
     if (static_cast<long double>(n[0]) * n[1] * n[2] > kMaxGridNodes) throw error("n", "makes more than " + std::to_string(kMaxGridNodes) + " nodes");
-    const Eigen::Vector3d lo = surface.points.rowwise().minCoeff(), hi = surface.points.rowwise().maxCoeff();
+    const Eigen::Vector3d bbLo = surface.points.rowwise().minCoeff(), bbHi = surface.points.rowwise().maxCoeff();
+    const Eigen::Vector3d lo = bbLo - (bbHi - bbLo) / 100, hi = bbHi + (bbHi - bbLo) / 100;
     const Eigen::Matrix3Xd grid = gridPoints(n, lo, hi);
     const HexList cells = gridHexahedra(n);
     if (typeName() == "SparseGridRamificationTopology") return ramified(surface, n, lo, hi, grid, cells);
-    const std::vector<char> kept = keptCells(surface, {n[0] - 1, n[1] - 1, n[2] - 1}, lo, hi);
-    // The kept cells' corners, numbered in grid order.
+    const std::vector<char> type = cellTypes(surface, {n[0] - 1, n[1] - 1, n[2] - 1}, lo, hi);
+    // The kept cells' corners, numbered by position: grid node (i, j, k) in order of i, then j, then k.
     std::vector<int> newIndex(grid.cols(), -1);
     for (size_t e = 0; e < cells.size(); ++e)
-      if (kept[e])
+      if (type[e] != Outside)
         for (int v : cells[e]) newIndex[v] = 0;
     int count = 0;
-    for (int& v : newIndex)
-      if (v == 0) v = count++;
+    for (int i = 0; i < n[0]; ++i)
+      for (int j = 0; j < n[1]; ++j)
+        for (int k = 0; k < n[2]; ++k)
+          if (int& v = newIndex[static_cast<size_t>(i + n[0] * (j + n[1] * k))]; v == 0) v = count++;
     if (count == 0) throw error("fileTopology", "the surface encloses no cell of the grid");
     points_.resize(3, count);
     for (Eigen::Index v = 0; v < grid.cols(); ++v)
       if (newIndex[v] >= 0) points_.col(newIndex[v]) = grid.col(v);
-    for (size_t e = 0; e < cells.size(); ++e)
-      if (kept[e]) {
-        std::array<int, 8> h{};
-        for (int k = 0; k < 8; ++k) h[k] = newIndex[cells[e][k]];
-        hexa_.push_back(h);
-      }
+    for (char kind : {Boundary, Inside})
+      for (size_t e = 0; e < cells.size(); ++e)
+        if (type[e] == kind) {
+          std::array<int, 8> h{};
+          for (int k = 0; k < 8; ++k) h[k] = newIndex[cells[e][k]];
+          hexa_.push_back(h);
+        }
   }
   const Eigen::Matrix3Xd& points() const override { return points_; }
   const TetList& tetrahedra() const override { return kNoTets; }
@@ -646,14 +653,16 @@ class SparseGridTopology : public Component, public Topology {
   }
 
  private:
-  // Which cells of a grid of c cells per axis over [lo, hi] the surface keeps: those a triangle
-  // meets (boundary) and those cut off from the grid's border by them (inside); the others are
+  enum CellType : char { Inside, Boundary, Outside };
+
+  // The cells of a grid of c cells per axis over [lo, hi], in grid order: those a triangle meets
+  // are on the boundary, those cut off from the grid's border by them inside; the others are
   // flooded from the border cells the surface does not meet.
-  static std::vector<char> keptCells(const io::SurfaceMesh& surface, const std::array<int, 3>& c, const Eigen::Vector3d& lo,
+  static std::vector<char> cellTypes(const io::SurfaceMesh& surface, const std::array<int, 3>& c, const Eigen::Vector3d& lo,
                                      const Eigen::Vector3d& hi) {
     const Eigen::Vector3d step((hi - lo).cwiseQuotient(Eigen::Vector3d(c[0], c[1], c[2])));
     auto cellIndex = [&](int i, int j, int k) { return i + c[0] * (j + c[1] * k); };
-    enum : char { Unknown, Boundary, Outside };
+    constexpr char Unknown = Inside;  // until the flood reaches it
     std::vector<char> type(static_cast<size_t>(c[0]) * c[1] * c[2], Unknown);
     for (Eigen::Index t = 0; t < surface.triangles.cols(); ++t) {
       const Eigen::Vector3d v0 = surface.points.col(surface.triangles(0, t)), v1 = surface.points.col(surface.triangles(1, t)),
@@ -692,8 +701,13 @@ class SparseGridTopology : public Component, public Topology {
         stack.push_back(nid);
       }
     }
-    std::vector<char> kept(type.size());
-    for (size_t e = 0; e < type.size(); ++e) kept[e] = type[e] != Outside;
+    return type;
+  }
+
+  static std::vector<char> keptCells(const io::SurfaceMesh& surface, const std::array<int, 3>& c, const Eigen::Vector3d& lo,
+                                     const Eigen::Vector3d& hi) {
+    std::vector<char> kept = cellTypes(surface, c, lo, hi);
+    for (char& k : kept) k = k != Outside;
     return kept;
   }
 
@@ -945,7 +959,9 @@ void registerTopologies(Registry& r) {
     s.category = "topology";
     s.doc = "The hexahedra of a regular grid of n nodes over a closed surface's bounding box that the surface crosses "
             "or encloses (voxelisation: a cell is kept when a triangle meets it or when it is cut off from the grid's "
-            "border by such cells). Nodes are the kept cells' corners, in grid order.";
+            "border by such cells); the bounding box is grown by 1 % of its size on each side, as in SOFA. Numbered as "
+            "SOFA numbers them: nodes are the kept cells' corners sorted by position (x, then y, then z), hexahedra "
+            "the boundary cells, then the inside cells.";
     s.add(AttrSpec::file("fileTopology").alias("filename").req().help("the closed surface (.obj, .stl, .off, .ply)"));
     s.add(AttrSpec::ints("n", 3).def("2 2 2").atLeast(2).help("grid nodes per axis over the surface's bounding box"));
     s.factory = [](BuildContext& c) { return std::make_unique<SparseGridTopology>(c); };

@@ -462,16 +462,17 @@ TEST(SofaSceneForms, GridMappingLocatesPointsBeforeThePlacement) {
 }
 
 // SparseGridTopology keeps the grid cells a closed surface meets or encloses. For the octahedron
-// |x| + |y| + |z| <= 3 on a 7 x 7 x 7 node grid (unit cells over [-3, 3]^3), a cell meets the solid
-// iff the L1 norm of its point nearest the centre is at most 3: every cell below that is kept
-// (the ones the surface crosses and the enclosed ones), none above; cells whose nearest point lies
-// exactly on the surface touch it and may go either way.
+// |x| + |y| + |z| <= 3 on a 13 x 13 x 13 node grid over its bounding box grown by 1 % a side (as
+// SOFA grows it: cells of 0.51 over [-3.06, 3.06]^3), a cell meets the solid iff the L1 norm of
+// its point nearest the centre is at most 3: every such cell is kept (the ones the surface crosses
+// and the enclosed ones), none other. Numbering follows SOFA: nodes sorted by position (x, then y,
+// then z), the cells the surface crosses before the enclosed ones.
 TEST(SofaSceneForms, SparseGridKeepsTheCellsASurfaceMeetsOrEncloses) {
   TempDir dir;
   write(dir / "octa.obj", "v 3 0 0\nv -3 0 0\nv 0 3 0\nv 0 -3 0\nv 0 0 3\nv 0 0 -3\n"
                           "f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
   write(dir / "scene.scn", R"(<Node name="root">
-  <SparseGridTopology name="grid" n="7 7 7" fileTopology="octa.obj"/>
+  <SparseGridTopology name="grid" n="13 13 13" fileTopology="octa.obj"/>
   <MechanicalObject name="dofs"/>
 </Node>)");
   auto scene = buildScene(io::readScene(dir / "scene.scn"));
@@ -479,29 +480,48 @@ TEST(SofaSceneForms, SparseGridKeepsTheCellsASurfaceMeetsOrEncloses) {
   const Topology* grid = scene->all<Topology>().front();
   const MechanicalObject& dofs = object(*scene, "dofs");
   ASSERT_EQ(dofs.size(), grid->points().cols());
-  auto nearestL1 = [](const Eigen::Vector3d& lo) {
+  const double w = 6.12 / 12, origin = -3.06;
+  // L1 norms of a cell's points nearest to and farthest from the centre.
+  auto nearestL1 = [&](const Eigen::Vector3d& lo) {
     double s = 0;
-    for (int a = 0; a < 3; ++a) s += lo[a] >= 0 ? lo[a] : (lo[a] + 1 <= 0 ? -(lo[a] + 1) : 0.0);
+    for (int a = 0; a < 3; ++a) s += lo[a] >= 0 ? lo[a] : (lo[a] + w <= 0 ? -(lo[a] + w) : 0.0);
     return s;
   };
+  auto farthestL1 = [&](const Eigen::Vector3d& lo) {
+    double s = 0;
+    for (int a = 0; a < 3; ++a) s += std::max(std::abs(lo[a]), std::abs(lo[a] + w));
+    return s;
+  };
+  auto cellOf = [&](const Eigen::Vector3d& lo) {
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) c[a] = static_cast<int>(std::lround((lo[a] - origin) / w));
+    return c;
+  };
   std::set<std::array<int, 3>> kept;
+  bool enclosedSeen = false;
   for (const auto& h : grid->hexahedra()) {
     const Eigen::Vector3d lo = grid->points().col(h[0]);
-    EXPECT_LE(nearestL1(lo), 3.0 + 1e-9) << lo.transpose();
-    EXPECT_DOUBLE_EQ((grid->points().col(h[6]) - lo).norm(), std::sqrt(3.0));  // a unit cell, corners in order
-    kept.insert({static_cast<int>(std::lround(lo.x())), static_cast<int>(std::lround(lo.y())), static_cast<int>(std::lround(lo.z()))});
+    EXPECT_LE(nearestL1(lo), 3.0) << lo.transpose();
+    EXPECT_NEAR((grid->points().col(h[6]) - lo).norm(), std::sqrt(3.0) * w, 1e-12);  // corners in order
+    kept.insert(cellOf(lo));
+    const bool enclosed = farthestL1(lo) < 3.0;  // the surface does not reach into it
+    EXPECT_TRUE(enclosed || !enclosedSeen) << "a crossed cell after an enclosed one at " << lo.transpose();
+    enclosedSeen = enclosedSeen || enclosed;
   }
-  int inside = 0;
-  for (int i = -3; i < 3; ++i)
-    for (int j = -3; j < 3; ++j)
-      for (int k = -3; k < 3; ++k)
-        if (nearestL1(Eigen::Vector3d(i, j, k)) < 3 - 1e-9) {
-          ++inside;
+  EXPECT_TRUE(enclosedSeen);
+  int meeting = 0;
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j)
+      for (int k = 0; k < 12; ++k)
+        if (nearestL1(Eigen::Vector3d(origin + i * w, origin + j * w, origin + k * w)) < 3.0) {
+          ++meeting;
           EXPECT_TRUE(kept.count({i, j, k})) << i << " " << j << " " << k;
         }
-  EXPECT_EQ(inside, 80);
-  EXPECT_GE(grid->hexahedra().size(), 80u);
-  EXPECT_LE(grid->hexahedra().size(), 136u);
+  EXPECT_EQ(static_cast<int>(grid->hexahedra().size()), meeting);
+  for (Eigen::Index v = 1; v < grid->points().cols(); ++v) {
+    const Eigen::Vector3d a = grid->points().col(v - 1), b = grid->points().col(v);
+    EXPECT_TRUE(std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3)) << "node " << v;
+  }
 }
 
 // SOFA's collision node under a body: a TriangleCollisionModel on a mapped MechanicalObject acts on
