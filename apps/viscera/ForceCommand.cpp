@@ -470,7 +470,8 @@ void addForceCommand(CLI::App& app, std::function<int()>& action) {
   sim->add_option("--seed", s->seed, "random seed of the reference and the noise")->capture_default_str();
   sim->add_option("--workspace", s->workspace, "full (free space) or trocar (outer joints confined, as inside a patient)")->capture_default_str();
   sim->add_option("--step", s->step, "largest move between waypoints, as a share of each joint's range (small: a random "
-                                     "walk; 1: anywhere, to cover the workspace in a short calibration recording)")
+                                     "walk; large: moves across the workspace, for a short calibration recording; "
+                                     "waypoints are clamped to the ranges)")
       ->capture_default_str();
   sim->add_flag("--trocar", s->trocar, "the body wall holds the shaft near the remote centre");
   sim->add_flag("--seal", s->seal, "the cannula seal's friction on insertion and roll");

@@ -589,9 +589,10 @@ class GeneralMeshTopology : public Component, public Topology, public Tetrahedra
 // by 1 % of its size on each side, as SOFA does) that the surface crosses or encloses, as
 // hexahedra. A cell is on the boundary when a triangle meets it (separating-axis test), outside
 // when it connects to the grid's border through cells the surface does not meet, inside otherwise.
-// Numbered as SOFA numbers them, so that indices in a SOFA scene name the same nodes: nodes are the
-// kept cells' corners sorted by position (x, then y, then z); hexahedra are the boundary cells,
-// then the inside cells, each in grid order.
+// The plain grid is numbered as SOFA numbers it, so that indices in a SOFA scene name the same
+// nodes: nodes are the kept cells' corners sorted by position (x, then y, then z); hexahedra are
+// the boundary cells, then the inside cells, each in grid order. (The Ramification variant numbers
+// its nodes by hexahedron; see ramified().)
 class SparseGridTopology : public Component, public Topology {
  public:
   using Component::Component;

@@ -73,8 +73,8 @@ struct JointGains {
 // free moves keep above the surface (retracting first when the path would dip into it).
 struct Excitation {
   std::vector<double> lower, upper;  // joint ranges of the waypoints
-  double step = 0.2;                 // largest step between waypoints, share of the range (1: anywhere;
-                                     // a calibration recording that must cover the workspace in minutes)
+  double step = 0.2;                 // largest step between waypoints, share of the range (large: a
+                                     // calibration recording that reaches across the workspace in minutes)
   double minSegment = 1.5, maxSegment = 5.0;  // s
   double wander = 0.004;       // relative amplitude of the sines (share of each joint's range)
   double palpationShare = 0.5; // with a phantom: share of moves that press it
