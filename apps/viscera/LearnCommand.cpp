@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -174,6 +175,7 @@ int evaluateCorrection(const LearnEvalCli& c) {
         << ev.surfaceBefore[k] << "," << ev.surfaceAfter[k] << "\n";
   writeFileAtomic((dir / "errors.csv").string(), csv.str());
   const double change = 100 * (ev.meanAfter - ev.meanBefore) / ev.meanBefore;
+  const double squaredChange = 100 * (ev.meanSquaredAfter - ev.meanSquaredBefore) / ev.meanSquaredBefore;
   nlohmann::ordered_json j = {{"model", fs::absolute(c.model).string()},
                               {"data", fs::absolute(c.data).string()},
                               {"frames", ev.time.size()},
@@ -183,19 +185,22 @@ int evaluateCorrection(const LearnEvalCli& c) {
                               {"improvementStandardError", ev.improvementSe},
                               {"meanSquaredBefore", ev.meanSquaredBefore},
                               {"meanSquaredAfter", ev.meanSquaredAfter},
+                              {"squaredChangePercent", squaredChange},
                               {"meanSurfaceDistanceBefore", ev.meanSurfaceBefore},
                               {"meanSurfaceDistanceAfter", ev.meanSurfaceAfter},
                               {"surfaceChangePercent", 100 * (ev.meanSurfaceAfter - ev.meanSurfaceBefore) / ev.meanSurfaceBefore},
                               {"msPerFrame", ev.msPerFrame}};
   writeFileAtomic((dir / "eval.json").string(), j.dump(2) + "\n");
   const std::string unit = model.units().substr(0, model.units().find(' '));
-  char line[480];
+  char line[640];
   std::snprintf(line, sizeof line,
-                "%zu frames: cloud -> refined surface %.4f %s uncorrected, %.4f %s corrected (%+.1f %%; improvement %.4f +- %.4f %s); "
-                "mean squared %.4f -> %.4f; cloud -> exact surface %.4f -> %.4f %s (%+.1f %%); %.2f ms per frame\n",
-                ev.time.size(), ev.meanBefore, unit.c_str(), ev.meanAfter, unit.c_str(), change, ev.meanBefore - ev.meanAfter,
-                ev.improvementSe, unit.c_str(), ev.meanSquaredBefore, ev.meanSquaredAfter, ev.meanSurfaceBefore, ev.meanSurfaceAfter,
-                unit.c_str(), 100 * (ev.meanSurfaceAfter - ev.meanSurfaceBefore) / ev.meanSurfaceBefore, ev.msPerFrame);
+                "%zu frames, uncorrected -> corrected: cloud -> refined-surface vertices, mean squared (the loss; Table 4-3's "
+                "measure) %.4f -> %.4f %s^2 (%+.1f %%), mean %.4f -> %.4f %s (%+.1f %%; improvement %.4f +- %.4f %s); "
+                "cloud -> exact surface, mean %.4f -> %.4f %s (%+.1f %%); %.2f ms per frame\n",
+                ev.time.size(), ev.meanSquaredBefore, ev.meanSquaredAfter, unit.c_str(), squaredChange, ev.meanBefore, ev.meanAfter,
+                unit.c_str(), change, ev.meanBefore - ev.meanAfter, ev.improvementSe, unit.c_str(), ev.meanSurfaceBefore,
+                ev.meanSurfaceAfter, unit.c_str(), 100 * (ev.meanSurfaceAfter - ev.meanSurfaceBefore) / ev.meanSurfaceBefore,
+                ev.msPerFrame);
   std::cout << line;
   if (!c.noPlot) {
     std::ostringstream gp;
@@ -407,7 +412,14 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   train->add_option("--max-correction", t->corrector.architecture.maxCorrection, "corrector: largest correction, in cells along each axis (0.5)");
   train->add_option("--points", t->corrector.maxPoints, "corrector: cloud points per frame in the loss (1000)");
   train->add_option("--validation-time", t->options.validationTime, "time each held-out rollout is rolled out over (20)");
-  train->add_option("--patience", t->options.patience, "epochs without a better held-out rollout before the rate halves (3)");
+  train->add_option("--schedule", t->options.schedule,
+                    "stepper: the learning rate halves after --patience epochs without a better held-out rollout "
+                    "(plateau), or follows a half cosine to zero over --epochs (cosine)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, learning::RateSchedule>{
+                                              {"plateau", learning::RateSchedule::Plateau}, {"cosine", learning::RateSchedule::Cosine}},
+                                          CLI::ignore_case))
+      ->default_str("plateau");
+  train->add_option("--patience", t->options.patience, "stepper, plateau schedule: epochs without a better held-out rollout before the rate halves (3)");
   train->add_option("--reach", t->options.reachCells, "the instrument is seen within its radius plus this many cells (1)");
   train->add_option("--seed", t->options.seed, "seed of the weights and the batches (1)");
   train->add_option("--threads", t->options.threads, "LibTorch threads (0: every core)");
@@ -422,8 +434,10 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   auto* ev = cmd->add_subcommand("eval", "report a learned stepper's error against the FEM, or a corrector's effect on cloud distances");
   ev->footer("A stepper: each rollout is stepped by the model from its first frame, driven by the recorded instrument; per\n"
              "segment of --segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no\n"
-             "motion). A corrector: per frame of the pairs, the mean distance from the cloud to the surface refined three\n"
-             "times, without and with the correction. Writes eval.json, errors.csv (per frame) and eval.png into --out.");
+             "motion). A corrector: per frame of the pairs, without and with the correction, the mean squared and the mean\n"
+             "distance from the cloud to the vertices of the surface refined three times (the loss; the mean squared one is\n"
+             "the dissertation's Table 4-3), and the mean distance to the exact surface. Writes eval.json, errors.csv (per\n"
+             "frame) and eval.png into --out.");
   ev->add_option("model", e->model, "model folder")->required();
   ev->add_option("data", e->data, "rollout folder (a stepper) or pair folder (a corrector)")->required();
   ev->add_option("--out", e->out, "folder for the report")->required();

@@ -105,6 +105,11 @@ class Stepper {
   std::unique_ptr<Impl> impl_;
 };
 
+// How the learning rate changes over the epochs: halved whenever the held-out rollout error has not
+// improved for `patience` epochs, or along a half cosine from the initial rate towards zero at the
+// last epoch (a fixed schedule: a noisy held-out error does not cut it early).
+enum class RateSchedule { Plateau, Cosine };
+
 // Training on recorded rollouts (learning/data/Rollout.h).
 struct StepperTrainOptions {
   std::vector<std::string> data;  // recording folders (one mesh, one frame rate)
@@ -118,7 +123,8 @@ struct StepperTrainOptions {
   double noise = 0.03;          // RMS of the smooth random displacement added to inputs, in cells
   double validation = 0.1;      // share of the rollouts held out (at least one)
   double validationTime = 20;   // time of each held-out rollout the model is rolled out over
-  int patience = 3;             // epochs without a better rollout error before the rate halves
+  RateSchedule schedule = RateSchedule::Plateau;
+  int patience = 3;             // epochs without a better rollout error before the rate halves (Plateau)
   double reachCells = 1;        // the instrument's reach: its radius plus this many cells
   std::uint64_t seed = 1;
   int threads = 0;              // 0: every core

@@ -226,3 +226,37 @@ TEST_F(StepperTest, TrainingWritesAModelAndResumesFromItsCheckpoint) {
     EXPECT_DOUBLE_EQ(ev.segments[5].t1, 6.0);
   }
 }
+
+TEST_F(StepperTest, CosineScheduleLowersTheRateAlongAHalfCosine) {
+  TempDir dir;
+  RecordOptions rec;
+  rec.scene = kCoarse;
+  rec.out = dir / "rec";
+  rec.rollouts = 2;
+  rec.time = 5;
+  rec.speedMin = 15;
+  rec.speedMax = 20;
+  rec.seed = 12;
+  record(rec);
+
+  StepperTrainOptions o;
+  o.data = {dir / "rec"};
+  o.out = dir / "model";
+  o.architecture = StepperArchitecture{8, 2, 2, 1.0};
+  o.epochs = 3;
+  o.batch = 32;
+  o.warmup = 0;
+  o.validationTime = 0.5;
+  o.threads = 1;
+  o.learningRate = 1e-3;
+  o.schedule = RateSchedule::Cosine;
+  o.patience = 1;  // would halve the rate after any epoch that is not the best, were the schedule plateau
+  std::vector<double> rates;
+  trainStepper(o, [&](const EpochReport& r) { rates.push_back(r.learningRate); });
+  // 0.5 (1 + cos(pi k / 3)) for k = 0, 1, 2: 1, 3/4, 1/4 of the initial rate.
+  ASSERT_EQ(rates.size(), 3u);
+  EXPECT_NEAR(rates[0], 1e-3, 1e-12);
+  EXPECT_NEAR(rates[1], 7.5e-4, 1e-12);
+  EXPECT_NEAR(rates[2], 2.5e-4, 1e-12);
+  EXPECT_EQ(nlohmann::json::parse(Stepper::load(dir / "model").training())["rateSchedule"], "cosine");
+}

@@ -6,8 +6,9 @@
 // target stays the FEM's next frame, so the model learns to pull a disturbed state back.
 //
 // Differences from the dissertation, for training on a CPU in minutes: Adam (not SGD with momentum),
-// the rate halved when the held-out rollout error stops improving, and the augmented inputs made by
-// the current network (not the last epoch's) as the batch is drawn.
+// the rate halved when the held-out rollout error stops improving or following a half cosine over
+// the epochs, and the augmented inputs made by the current network (not the last epoch's) as the
+// batch is drawn.
 #include <Eigen/SparseCore>
 #include <chrono>
 #include <cmath>
@@ -57,6 +58,13 @@ double lrOf(torch::optim::Adam& opt) {
 void setLr(torch::optim::Adam& opt, double lr) {
   for (auto& g : opt.param_groups()) static_cast<torch::optim::AdamOptions&>(g.options()).lr(lr);
 }
+
+// The cosine schedule's rate for epoch `epoch` of `epochs` (1-based): the initial rate at the first.
+double cosineRate(double initial, int epoch, int epochs) {
+  return initial * 0.5 * (1 + std::cos(M_PI * (epoch - 1) / epochs));
+}
+
+const char* scheduleName(RateSchedule s) { return s == RateSchedule::Cosine ? "cosine" : "plateau"; }
 
 }  // namespace
 
@@ -192,6 +200,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
     std::mt19937_64 rng(o.seed * 1000003ull + static_cast<std::uint64_t>(epoch));
     std::vector<Sample> order = samples;
     std::shuffle(order.begin(), order.end(), rng);
+    if (o.schedule == RateSchedule::Cosine) setLr(optimizer, cosineRate(o.learningRate, epoch, o.epochs));
     const bool augment = epoch > o.warmup;
     m.net->train();
     double lossSum = 0;
@@ -283,6 +292,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
     trainingRecord["samples"] = samples.size();
     trainingRecord["optimizer"] = "Adam";
     trainingRecord["initialLearningRate"] = o.learningRate;
+    trainingRecord["rateSchedule"] = scheduleName(o.schedule);
     trainingRecord["batch"] = o.batch;
     trainingRecord["warmupEpochs"] = o.warmup;
     trainingRecord["unroll"] = o.unroll;
@@ -298,7 +308,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
       trainingRecord["heldOutTime"] = o.validationTime;
       model->save(out.string(), trainingRecord.dump());
       saveOptimizer(optimizer, (out / "optimizer.pt").string());
-    } else if (++sinceBest >= o.patience) {
+    } else if (++sinceBest >= o.patience && o.schedule == RateSchedule::Plateau) {
       setLr(optimizer, lrOf(optimizer) / 2);
       sinceBest = 0;
     }
