@@ -401,6 +401,9 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
                   "do not subtract the network's output at rest (for a body whose rest shape is not its equilibrium)");
   train->add_flag("--instrument-all", t->options.architecture.instrumentAtAllInReach,
                   "every node within reach sees the instrument (default: the nearest only, as the dissertation)");
+  train->add_flag("--predict-offset", t->options.architecture.predictsOffset,
+                  "stepper: the network predicts each node's next offset from rest, and the update is its difference from the "
+                  "current offset, clamped (default: it predicts the update)");
   train->add_option("--epochs", t->epochs, "epochs (stepper 30, corrector 40)");
   train->add_option("--batch", t->batch, "frames per batch (stepper 32, corrector 8)");
   train->add_option("--lr", t->lr, "Adam's initial learning rate (1e-3)");

@@ -39,6 +39,10 @@ struct StepperArchitecture {
   // Which nodes see the instrument: only the nearest within reach (the dissertation), or every
   // node within reach, each with the instrument's position relative to itself.
   bool instrumentAtAllInReach = false;
+  // The network predicts the next offset from rest instead of the update: the current offset is
+  // subtracted inside the clamp, so a zero output returns a node to rest. A quasi-static body
+  // relaxes within a few frames once the instrument lets go, and this makes that the default.
+  bool predictsOffset = false;
 };
 
 // Inputs are scaled by these before they reach the network; stored with the model.

@@ -101,6 +101,18 @@ TEST_F(StepperTest, SavedModelsLoadWithIdenticalOutputs) {
   EXPECT_FALSE(model.step(mesh.points, tool) == mesh.points);
   const Stepper free(mesh, StepperArchitecture{16, 2, 2, 1.0, false}, normalisersOf(mesh), 1.0 / 30, "mm g s", 3);
   EXPECT_FALSE(free.step(mesh.points, away) == mesh.points);
+
+  // A network that predicts offsets reads back as one, and steps as before saving.
+  StepperArchitecture offsets{16, 2, 2, 1.0};
+  offsets.predictsOffset = true;
+  const Stepper o(mesh, offsets, normalisersOf(mesh), 1.0 / 30, "mm g s", 3);
+  o.save(dir / "o", "");
+  EXPECT_EQ(nlohmann::json::parse(slurp(dir / "o/config.json"))["architecture"]["output"], "next offset");
+  const Stepper oBack = Stepper::load(dir / "o");
+  EXPECT_TRUE(oBack.architecture().predictsOffset);
+  EXPECT_TRUE(oBack.step(x, tool) == o.step(x, tool));
+  EXPECT_FALSE(o.step(x, tool) == model.step(x, tool));
+  EXPECT_FALSE(Stepper::load(dir / "m").architecture().predictsOffset);
 }
 
 TEST_F(StepperTest, AModelForAnotherMeshOrArchitectureIsRefused) {

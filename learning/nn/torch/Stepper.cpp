@@ -148,6 +148,9 @@ torch::Tensor TorchStepper::anchor() const {
 torch::Tensor TorchStepper::update(const torch::Tensor& features) const {
   torch::Tensor raw = net->forward(features, ops);
   if (arch.restAnchored) raw = raw - anchor();
+  // 2 sigmoid(r) - 1 is r / 2 near zero: subtracting 2 offset / maxStep (offsets in cells) makes the
+  // update minus the offset, and the network's output the next offset.
+  if (arch.predictsOffset) raw = raw - (2 / arch.maxStep) * features.narrow(2, 0, 3);
   return stepScale * (2 * torch::sigmoid(raw) - 1) * movable;
 }
 
@@ -268,6 +271,7 @@ void TorchStepper::save(const std::string& folder, const std::string& training) 
                        {"maxStep", m.arch.maxStep},
                        {"restAnchored", m.arch.restAnchored},
                        {"instrumentNodes", m.arch.instrumentAtAllInReach ? "all within reach" : "nearest within reach"},
+                       {"output", m.arch.predictsOffset ? "next offset" : "update"},
                        {"parameters", parameters()}};
   c["normalisers"] = {{"cell", vec(m.norm.cell)},
                       {"boxMin", vec(m.norm.boxMin)},
@@ -300,6 +304,10 @@ std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
     if (seen != "all within reach" && seen != "nearest within reach")
       throw Error(SourceLoc{configPath}, "architecture.instrumentNodes must be \"nearest within reach\" or \"all within reach\", got \"" + seen + "\"");
     arch.instrumentAtAllInReach = seen == "all within reach";
+    const std::string output = a.value("output", std::string("update"));  // models before this key predicted updates
+    if (output != "update" && output != "next offset")
+      throw Error(SourceLoc{configPath}, "architecture.output must be \"update\" or \"next offset\", got \"" + output + "\"");
+    arch.predictsOffset = output == "next offset";
     const auto& nj = c.at("normalisers");
     StepperNormalisers norm;
     norm.cell = vec(nj.at("cell"));
