@@ -401,9 +401,16 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
                   "do not subtract the network's output at rest (for a body whose rest shape is not its equilibrium)");
   train->add_flag("--instrument-all", t->options.architecture.instrumentAtAllInReach,
                   "every node within reach sees the instrument (default: the nearest only, as the dissertation)");
-  train->add_flag("--predict-offset", t->options.architecture.predictsOffset,
-                  "stepper: the network predicts each node's next offset from rest, and the update is its difference from the "
-                  "current offset, clamped (default: it predicts the update)");
+  train->add_option("--output", t->options.architecture.output,
+                    "stepper: what the network predicts per node: its update (update), its next offset from rest, the update "
+                    "being the difference from the current offset (offset), or an update and a gate g in (0, 1) with g times "
+                    "the current offset taken off (gated)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, learning::StepperArchitecture::Output>{
+                                              {"update", learning::StepperArchitecture::Output::Update},
+                                              {"offset", learning::StepperArchitecture::Output::NextOffset},
+                                              {"gated", learning::StepperArchitecture::Output::Gated}},
+                                          CLI::ignore_case))
+      ->default_str("update");
   train->add_option("--epochs", t->epochs, "epochs (stepper 30, corrector 40)");
   train->add_option("--batch", t->batch, "frames per batch (stepper 32, corrector 8)");
   train->add_option("--lr", t->lr, "Adam's initial learning rate (1e-3)");

@@ -87,6 +87,14 @@ void setTorchThreads(int threads) {
   if (threads > 0) learningBackend().setThreads(threads);
 }
 
+const char* outputName(StepperArchitecture::Output o) {
+  switch (o) {
+    case StepperArchitecture::Output::NextOffset: return "next offset";
+    case StepperArchitecture::Output::Gated: return "gated";
+    default: return "update";
+  }
+}
+
 Stepper::Stepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm, double framePeriod,
                  const std::string& units, std::uint64_t seed)
     : impl_(learningBackend().newStepper(mesh, arch, norm, framePeriod, units, seed)) {}

@@ -158,23 +158,16 @@ TEST(GraphUNet, OverfitsOneBatch) {
   EXPECT_LE(out.abs().max().item<float>(), 1.0f);
 }
 
-// predictsOffset: the network's output is the next offset from rest, so a network that outputs zero
-// takes every free node back towards rest by maxStep cell tanh(offset / (maxStep cell)) (the clamp),
-// which for a small offset is the whole way; fixed nodes stay where they are.
-TEST(GraphUNet, PredictingOffsetsAZeroOutputReturnsToRest) {
+// What the output means: with a network that outputs zero, NextOffset takes every free node back
+// towards rest by maxStep cell tanh(offset / (maxStep cell)) (the clamp), which for a small offset
+// is the whole way; Gated (gate sigmoid(0) = 1/2) by maxStep cell tanh(offset / (2 maxStep cell));
+// Update leaves it where it is. Fixed nodes stay where they are.
+TEST(GraphUNet, AZeroOutputHoldsOrReturnsToRestAsTheOutputSays) {
   const RestMesh mesh = gridMesh(5, 4, 4);
   StepperNormalisers norm;
   norm.cell = Eigen::Vector3d(1, 1, 1);
   norm.boxMax = Eigen::Vector3d(4, 3, 3);
   norm.reach = 2;
-  StepperArchitecture arch{16, 2, 1, 0.5};
-  arch.predictsOffset = true;
-  Stepper model(mesh, arch, norm, 1.0 / 30, "mm g s", 7);
-  TorchStepper& m = static_cast<TorchStepper&>(model.impl());
-  {
-    torch::NoGradGuard noGrad;
-    for (auto& p : m.net->parameters()) p.zero_();
-  }
   const int n = static_cast<int>(mesh.points.cols());
   std::mt19937 rng(2);
   std::uniform_real_distribution<double> u(-0.4, 0.4);
@@ -182,23 +175,25 @@ TEST(GraphUNet, PredictingOffsetsAZeroOutputReturnsToRest) {
   for (int i = 0; i < n; ++i)
     for (int a = 0; a < 3; ++a) x(a, i) += u(rng);
   const InstrumentInput tool{Eigen::Vector3d(2, 1.5, 3.5), Eigen::Vector3d(0, 0, -1)};
-  const Eigen::Matrix3Xd next = model.step(x, tool);
   std::vector<char> fixed(n, 0);
   for (int f : mesh.fixed) fixed[f] = 1;
-  for (int i = 0; i < n; ++i)
-    for (int a = 0; a < 3; ++a) {
-      const double offset = x(a, i) - mesh.points(a, i);
-      const double expected = fixed[i] ? x(a, i) : x(a, i) - 0.5 * std::tanh(offset / 0.5);
-      EXPECT_NEAR(next(a, i), expected, 1e-6) << "node " << i << " axis " << a;
+  using Output = StepperArchitecture::Output;
+  for (auto [output, share] : {std::pair{Output::Update, 0.0}, std::pair{Output::NextOffset, 1.0}, std::pair{Output::Gated, 0.5}}) {
+    StepperArchitecture arch{16, 2, 1, 0.5};
+    arch.output = output;
+    Stepper model(mesh, arch, norm, 1.0 / 30, "mm g s", 7);
+    {
+      torch::NoGradGuard noGrad;
+      for (auto& p : static_cast<TorchStepper&>(model.impl()).net->parameters()) p.zero_();
     }
-  // Without the skip the same zero network leaves every node where it is.
-  arch.predictsOffset = false;
-  Stepper plain(mesh, arch, norm, 1.0 / 30, "mm g s", 7);
-  {
-    torch::NoGradGuard noGrad;
-    for (auto& p : static_cast<TorchStepper&>(plain.impl()).net->parameters()) p.zero_();
+    const Eigen::Matrix3Xd next = model.step(x, tool);
+    for (int i = 0; i < n; ++i)
+      for (int a = 0; a < 3; ++a) {
+        const double offset = x(a, i) - mesh.points(a, i);
+        const double expected = fixed[i] ? x(a, i) : x(a, i) - 0.5 * std::tanh(share * offset / 0.5);
+        EXPECT_NEAR(next(a, i), expected, 1e-6) << outputName(output) << ", node " << i << " axis " << a;
+      }
   }
-  EXPECT_LT((plain.step(x, tool) - x).cwiseAbs().maxCoeff(), 1e-6);
 }
 
 // The corrector's Chamfer loss against a brute-force double loop, and its gradient with respect to
