@@ -234,6 +234,12 @@ int evaluateModel(const LearnEvalCli& c) {
   csv << "rollout,t,model,no_motion\n";
   table << "rollout            segment       model - FEM, mean (sd)   no motion - FEM   ratio\n";
   double all = 0, allBase = 0, frames = 0, seconds = 0, worst = 0, worstRatio = 1e300;
+  // A segment where the FEM stays at rest (its distance from rest a thousandth of the recording's
+  // mean, i.e. round-off) has no ratio to speak of: it is marked and left out of the smallest ratio.
+  double baseSum = 0, baseFrames = 0;
+  for (const auto& e : evals)
+    if (e.time.size() >= 2) baseSum += e.baselineMean * (e.time.size() - 1), baseFrames += e.time.size() - 1;
+  const double atRest = 1e-3 * baseSum / std::max(1.0, baseFrames);
   auto& list = report["rollouts"] = nlohmann::ordered_json::array();
   for (size_t r = 0; r < evals.size(); ++r) {
     const auto& e = evals[r];
@@ -242,14 +248,17 @@ int evaluateModel(const LearnEvalCli& c) {
     nlohmann::ordered_json j = {{"file", e.file}, {"mean", e.mean}, {"noMotionMean", e.baselineMean}};
     auto& segs = j["segments"] = nlohmann::ordered_json::array();
     for (const auto& s : e.segments) {
+      const bool still = s.baselineMean <= atRest;
+      char ratio[32];
+      std::snprintf(ratio, sizeof ratio, still ? "at rest" : "%.1f", s.mean > 0 ? s.baselineMean / s.mean : 0.0);
       char line[200];
-      std::snprintf(line, sizeof line, "%-18s %5.0f-%-5.0f   %8.3f (%.3f) %-10s %8.3f %-8s %6.1f\n", name.c_str(), s.t0, s.t1,
-                    s.mean, s.stddev, model.units().substr(0, model.units().find(' ')).c_str(), s.baselineMean, "",
-                    s.mean > 0 ? s.baselineMean / s.mean : 0.0);
+      std::snprintf(line, sizeof line, "%-18s %5.0f-%-5.0f   %8.3f (%.3f) %-10s %8.3f %-8s %7s\n", name.c_str(), s.t0, s.t1, s.mean,
+                    s.stddev, model.units().substr(0, model.units().find(' ')).c_str(), s.baselineMean, "", ratio);
       table << line;
-      segs.push_back({{"t0", s.t0}, {"t1", s.t1}, {"frames", s.frames}, {"mean", s.mean}, {"sd", s.stddev}, {"noMotionMean", s.baselineMean}});
+      segs.push_back({{"t0", s.t0}, {"t1", s.t1}, {"frames", s.frames}, {"mean", s.mean}, {"sd", s.stddev}, {"noMotionMean", s.baselineMean},
+                      {"femAtRest", still}});
       worst = std::max(worst, s.mean);
-      if (s.mean > 0) worstRatio = std::min(worstRatio, s.baselineMean / s.mean);
+      if (s.mean > 0 && !still) worstRatio = std::min(worstRatio, s.baselineMean / s.mean);
     }
     for (size_t f = 0; f < e.time.size(); ++f) csv << name << "," << e.time[f] << "," << e.error[f] << "," << e.baseline[f] << "\n";
     const double n = static_cast<double>(e.time.size() - 1);
@@ -260,12 +269,15 @@ int evaluateModel(const LearnEvalCli& c) {
   report["mean"] = all / frames;
   report["noMotionMean"] = allBase / frames;
   report["worstSegmentMean"] = worst;
-  report["smallestSegmentRatio"] = worstRatio;
+  report["smallestSegmentRatio"] = worstRatio < 1e300 ? nlohmann::ordered_json(worstRatio) : nlohmann::ordered_json(nullptr);
   report["msPerFrame"] = 1e3 * seconds / frames;
   std::cout << table.str();
   char line[240];
-  std::snprintf(line, sizeof line, "all: model - FEM %.3f, no motion - FEM %.3f (ratio %.1f); worst segment %.3f, smallest segment ratio %.1f; %.2f ms per frame\n",
-                all / frames, allBase / frames, allBase / std::max(1e-300, all), worst, worstRatio, 1e3 * seconds / frames);
+  std::snprintf(line, sizeof line,
+                "all: model - FEM %.3f, no motion - FEM %.3f (ratio %.1f); worst segment %.3f, smallest segment ratio %.1f "
+                "(segments where the FEM moves); %.2f ms per frame\n",
+                all / frames, allBase / frames, allBase / std::max(1e-300, all), worst, worstRatio < 1e300 ? worstRatio : 0.0,
+                1e3 * seconds / frames);
   std::cout << line;
   const fs::path dir(c.out);
   writeFileAtomic((dir / "errors.csv").string(), csv.str());
@@ -444,7 +456,7 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   auto* ev = cmd->add_subcommand("eval", "report a learned stepper's error against the FEM, or a corrector's effect on cloud distances");
   ev->footer("A stepper: each rollout is stepped by the model from its first frame, driven by the recorded instrument; per\n"
              "segment of --segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no\n"
-             "motion). A corrector: per frame of the pairs, without and with the correction, the mean squared and the mean\n"
+             "motion) and their ratio (\"at rest\" where the FEM does not move, which has none). A corrector: per frame of the pairs, without and with the correction, the mean squared and the mean\n"
              "distance from the cloud to the vertices of the surface refined three times (the loss; the mean squared one is\n"
              "the dissertation's Table 4-3), and the mean distance to the exact surface. Writes eval.json, errors.csv (per\n"
              "frame) and eval.png into --out.");
