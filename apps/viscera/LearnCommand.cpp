@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -86,6 +85,8 @@ struct LearnTrainCli {
   learning::CorrectorTrainOptions corrector;
   int width = 0, epochs = 0, batch = 0;
   double validation = 0, lr = 0;
+  // As typed (the model's record keeps the words, not the enumerations they become).
+  std::string schedule = "plateau", output = "update";
   bool quiet = false;
 };
 
@@ -136,6 +137,10 @@ int trainModel(LearnTrainCli& c) {
   if (c.batch) c.options.batch = c.batch;
   if (c.validation) c.options.validation = c.validation;
   if (c.lr) c.options.learningRate = c.lr;
+  c.options.schedule = c.schedule == "cosine" ? learning::RateSchedule::Cosine : learning::RateSchedule::Plateau;
+  c.options.architecture.output = c.output == "offset"  ? learning::StepperArchitecture::Output::NextOffset
+                                  : c.output == "gated" ? learning::StepperArchitecture::Output::Gated
+                                                        : learning::StepperArchitecture::Output::Update;
   const std::string units = learning::readRolloutSet(c.options.data.front()).units;
   const std::string length = units.substr(0, units.find(' '));
   learning::trainStepper(c.options, [&](const learning::EpochReport& r) {
@@ -385,7 +390,7 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   rec->add_option("--depth", c->depth, "range of the poke depth past the face, MIN:MAX in the scene's length unit (2:6)");
   rec->add_option("--speed", c->speed, "range of the press speed, MIN:MAX in length per time unit (5:15)");
   rec->add_option("--faces", c->faces, "faces to poke, comma-separated: top, x-, x+, y-, y+ (all)");
-  rec->add_option("--seed", c->options.seed, "rollout k draws from seed + k (1)");
+  rec->add_option("--seed", c->options.seed, "rollout k draws from seed + k (1); recordings meant to differ need seeds at least --rollouts apart");
   rec->add_option("--jobs", c->options.jobs, "rollouts run at once (0: one per core)");
   rec->add_option("--data", c->data, "a measured dataset: record pairs for a learned correction instead of rollouts");
   rec->add_option("--points", c->points, "with --data: cloud points kept per frame, chosen evenly (4000)");
@@ -413,15 +418,11 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
                   "do not subtract the network's output at rest (for a body whose rest shape is not its equilibrium)");
   train->add_flag("--instrument-all", t->options.architecture.instrumentAtAllInReach,
                   "every node within reach sees the instrument (default: the nearest only, as the dissertation)");
-  train->add_option("--output", t->options.architecture.output,
+  train->add_option("--output", t->output,
                     "stepper: what the network predicts per node: its update (update), its next offset from rest, the update "
                     "being the difference from the current offset (offset), or an update and a gate g in (0, 1) with g times "
                     "the current offset taken off (gated)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, learning::StepperArchitecture::Output>{
-                                              {"update", learning::StepperArchitecture::Output::Update},
-                                              {"offset", learning::StepperArchitecture::Output::NextOffset},
-                                              {"gated", learning::StepperArchitecture::Output::Gated}},
-                                          CLI::ignore_case))
+      ->transform(CLI::IsMember({"update", "offset", "gated"}, CLI::ignore_case))
       ->default_str("update");
   train->add_option("--epochs", t->epochs, "epochs (stepper 30, corrector 40)");
   train->add_option("--batch", t->batch, "frames per batch (stepper 32, corrector 8)");
@@ -434,12 +435,10 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   train->add_option("--max-correction", t->corrector.architecture.maxCorrection, "corrector: largest correction, in cells along each axis (0.5)");
   train->add_option("--points", t->corrector.maxPoints, "corrector: cloud points per frame in the loss (1000)");
   train->add_option("--validation-time", t->options.validationTime, "time each held-out rollout is rolled out over (20)");
-  train->add_option("--schedule", t->options.schedule,
+  train->add_option("--schedule", t->schedule,
                     "stepper: the learning rate halves after --patience epochs without a better held-out rollout "
                     "(plateau), or follows a half cosine to zero over --epochs (cosine)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, learning::RateSchedule>{
-                                              {"plateau", learning::RateSchedule::Plateau}, {"cosine", learning::RateSchedule::Cosine}},
-                                          CLI::ignore_case))
+      ->transform(CLI::IsMember({"plateau", "cosine"}, CLI::ignore_case))
       ->default_str("plateau");
   train->add_option("--patience", t->options.patience, "stepper, plateau schedule: epochs without a better held-out rollout before the rate halves (3)");
   train->add_option("--reach", t->options.reachCells, "the instrument is seen within its radius plus this many cells (1)");

@@ -1,6 +1,7 @@
-// `viscera learn record` and `learn eval` through the command line: the shipped stepper rolled out
-// over the scene's own 80 s palpation, with the report's per-segment figures checked against each
-// other, and a missing model refused with exit code 2 naming it.
+// `viscera learn record`, `train` and `eval` through the command line: the shipped stepper rolled
+// out over the scene's own 80 s palpation, with the report's per-segment figures checked against
+// each other; a missing model refused with exit code 2 naming it; training's choice words reach the
+// model and its record as typed.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -39,6 +40,27 @@ TEST(LearnCli, EvalReportsSegmentsAndMarksThoseAtRest) {
   EXPECT_EQ(r.rc, 2) << r;
   EXPECT_NE(r.err.find("no_such_model"), std::string::npos) << r;
   EXPECT_FALSE(fs::exists(fs::path(dir / "ev2")));
+}
+
+TEST(LearnCli, TrainRecordsTheOutputAndScheduleItWasGiven) {
+  TempDir dir("viscera_learn");
+  RunResult r = runViscera({"learn", "record", sourcePath("scenes/gel_phantom_coarse.xml"), "--out", dir / "rec", "--rollouts", "2",
+                            "--time", "5", "--speed", "15:20", "--quiet"});
+  ASSERT_EQ(r.rc, 0) << r;
+  r = runViscera({"learn", "train", dir / "rec", "--out", dir / "m", "--width", "8", "--epochs", "1", "--validation-time", "0.5",
+                  "--schedule", "Cosine", "--output", "OFFSET", "--threads", "1", "--quiet"});
+  if (r.rc != 0 && r.err.find("not available") != std::string::npos) GTEST_SKIP() << "built without LibTorch";
+  ASSERT_EQ(r.rc, 0) << r;
+  const auto config = nlohmann::json::parse(slurp(fs::path(dir / "m") / "config.json"));
+  EXPECT_EQ(config["architecture"]["output"], "next offset");
+  EXPECT_EQ(config["training"]["rateSchedule"], "cosine");
+  const std::string command = config["training"]["command"];
+  EXPECT_NE(command.find("--schedule cosine"), std::string::npos) << command;
+  EXPECT_NE(command.find("--output offset"), std::string::npos) << command;
+  r = runViscera({"learn", "train", dir / "rec", "--out", dir / "m2", "--output", "sideways"});
+  EXPECT_EQ(r.rc, 2) << r;
+  EXPECT_NE(r.err.find("--output"), std::string::npos) << r;
+  EXPECT_FALSE(fs::exists(fs::path(dir / "m2")));
 }
 
 }  // namespace
