@@ -85,7 +85,7 @@ struct LearnTrainCli {
   learning::CorrectorTrainOptions corrector;
   int width = 0, epochs = 0, batch = 0;
   double validation = 0, lr = 0;
-  // As typed (the model's record keeps the words, not the enumerations they become).
+  // As given (the model's record keeps the words, not the enumerations they become).
   std::string schedule = "plateau", output = "update";
   bool quiet = false;
 };
@@ -138,9 +138,8 @@ int trainModel(LearnTrainCli& c) {
   if (c.validation) c.options.validation = c.validation;
   if (c.lr) c.options.learningRate = c.lr;
   c.options.schedule = c.schedule == "cosine" ? learning::RateSchedule::Cosine : learning::RateSchedule::Plateau;
-  c.options.architecture.output = c.output == "offset"  ? learning::StepperArchitecture::Output::NextOffset
-                                  : c.output == "gated" ? learning::StepperArchitecture::Output::Gated
-                                                        : learning::StepperArchitecture::Output::Update;
+  c.options.architecture.output =
+      c.output == "offset" ? learning::StepperArchitecture::Output::NextOffset : learning::StepperArchitecture::Output::Update;
   const std::string units = learning::readRolloutSet(c.options.data.front()).units;
   const std::string length = units.substr(0, units.find(' '));
   learning::trainStepper(c.options, [&](const learning::EpochReport& r) {
@@ -419,10 +418,9 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   train->add_flag("--instrument-all", t->options.architecture.instrumentAtAllInReach,
                   "every node within reach sees the instrument (default: the nearest only, as the dissertation)");
   train->add_option("--output", t->output,
-                    "stepper: what the network predicts per node: its update (update), its next offset from rest, the update "
-                    "being the difference from the current offset (offset), or an update and a gate g in (0, 1) with g times "
-                    "the current offset taken off (gated)")
-      ->transform(CLI::IsMember({"update", "offset", "gated"}, CLI::ignore_case))
+                    "stepper: what the network predicts per node: its update (update, as the dissertation), or its next offset "
+                    "from rest, the update being the difference from the current offset (offset)")
+      ->transform(CLI::IsMember({"update", "offset"}, CLI::ignore_case))
       ->default_str("update");
   train->add_option("--epochs", t->epochs, "epochs (stepper 30, corrector 40)");
   train->add_option("--batch", t->batch, "frames per batch (stepper 32, corrector 8)");

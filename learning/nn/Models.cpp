@@ -88,11 +88,7 @@ void setTorchThreads(int threads) {
 }
 
 const char* outputName(StepperArchitecture::Output o) {
-  switch (o) {
-    case StepperArchitecture::Output::NextOffset: return "next offset";
-    case StepperArchitecture::Output::Gated: return "gated";
-    default: return "update";
-  }
+  return o == StepperArchitecture::Output::NextOffset ? "next offset" : "update";
 }
 
 Stepper::Stepper(const RestMesh& mesh, const StepperArchitecture& arch, const StepperNormalisers& norm, double framePeriod,

@@ -39,16 +39,15 @@ struct StepperArchitecture {
   // Which nodes see the instrument: only the nearest within reach (the dissertation), or every
   // node within reach, each with the instrument's position relative to itself.
   bool instrumentAtAllInReach = false;
-  // What the network's output means. Update: each node's update. NextOffset: the next offset from
-  // rest (the current offset is subtracted inside the clamp, so a zero output returns a node to rest,
-  // as a quasi-static body does within a few frames once the instrument lets go). Gated: an update
-  // plus a fourth output per node, a gate g in (0, 1), with g times the current offset subtracted:
-  // the network chooses per node between holding its deformation (g = 0) and letting it go (g = 1).
-  enum class Output { Update, NextOffset, Gated };
+  // What the network's output means. Update: each node's update (the dissertation's). NextOffset:
+  // the next offset from rest (the current offset is subtracted inside the clamp, so a zero output
+  // returns a node to rest, as a quasi-static body does within a few frames once the instrument
+  // lets go).
+  enum class Output { Update, NextOffset };
   Output output = Output::Update;
 };
 
-// "update", "next offset", "gated" (config.json's architecture.output and --output).
+// "update", "next offset" (config.json's architecture.output).
 const char* outputName(StepperArchitecture::Output o);
 
 // Inputs are scaled by these before they reach the network; stored with the model.

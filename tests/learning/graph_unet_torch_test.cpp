@@ -160,8 +160,7 @@ TEST(GraphUNet, OverfitsOneBatch) {
 
 // What the output means: with a network that outputs zero, NextOffset takes every free node back
 // towards rest by maxStep cell tanh(offset / (maxStep cell)) (the clamp), which for a small offset
-// is the whole way; Gated (gate sigmoid(0) = 1/2) by maxStep cell tanh(offset / (2 maxStep cell));
-// Update leaves it where it is. Fixed nodes stay where they are.
+// is the whole way; Update leaves it where it is. Fixed nodes stay where they are.
 TEST(GraphUNet, AZeroOutputHoldsOrReturnsToRestAsTheOutputSays) {
   const RestMesh mesh = gridMesh(5, 4, 4);
   StepperNormalisers norm;
@@ -178,7 +177,7 @@ TEST(GraphUNet, AZeroOutputHoldsOrReturnsToRestAsTheOutputSays) {
   std::vector<char> fixed(n, 0);
   for (int f : mesh.fixed) fixed[f] = 1;
   using Output = StepperArchitecture::Output;
-  for (auto [output, share] : {std::pair{Output::Update, 0.0}, std::pair{Output::NextOffset, 1.0}, std::pair{Output::Gated, 0.5}}) {
+  for (auto [output, share] : {std::pair{Output::Update, 0.0}, std::pair{Output::NextOffset, 1.0}}) {
     StepperArchitecture arch{16, 2, 1, 0.5};
     arch.output = output;
     Stepper model(mesh, arch, norm, 1.0 / 30, "mm g s", 7);

@@ -119,7 +119,7 @@ TorchStepper::TorchStepper(RestMesh m, const StepperArchitecture& a, const Stepp
   hash = meshHash(rest);
   graph = buildMeshGraph(rest, a.levels, a.matchings);
   ops = GraphOps::build(graph);
-  net = GraphUNet(kStepperInputs, a.width, a.levels, a.output == StepperArchitecture::Output::Gated ? 4 : 3);
+  net = GraphUNet(kStepperInputs, a.width, a.levels, 3);
   const int nodes = static_cast<int>(rest.points.cols());
   fixed.assign(nodes, 0);
   for (int f : rest.fixed)
@@ -146,15 +146,11 @@ torch::Tensor TorchStepper::anchor() const {
 }
 
 torch::Tensor TorchStepper::update(const torch::Tensor& features) const {
-  const torch::Tensor out = net->forward(features, ops);
-  torch::Tensor raw = out.narrow(2, 0, 3);
-  if (arch.restAnchored) raw = raw - anchor().narrow(2, 0, 3);
+  torch::Tensor raw = net->forward(features, ops);
+  if (arch.restAnchored) raw = raw - anchor();
   // 2 sigmoid(r) - 1 is r / 2 near zero: subtracting 2 offset / maxStep (offsets in cells) makes the
-  // update minus the offset (NextOffset), or minus the gated offset (Gated). At rest the offset is
-  // zero, so the anchor needs no gate.
-  const torch::Tensor offset = (2 / arch.maxStep) * features.narrow(2, 0, 3);
-  if (arch.output == StepperArchitecture::Output::NextOffset) raw = raw - offset;
-  if (arch.output == StepperArchitecture::Output::Gated) raw = raw - torch::sigmoid(out.narrow(2, 3, 1)) * offset;
+  // update the network's output minus the current offset, and that output the next offset.
+  if (arch.output == StepperArchitecture::Output::NextOffset) raw = raw - (2 / arch.maxStep) * features.narrow(2, 0, 3);
   return stepScale * (2 * torch::sigmoid(raw) - 1) * movable;
 }
 
@@ -309,11 +305,9 @@ std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
       throw Error(SourceLoc{configPath}, "architecture.instrumentNodes must be \"nearest within reach\" or \"all within reach\", got \"" + seen + "\"");
     arch.instrumentAtAllInReach = seen == "all within reach";
     const std::string output = a.value("output", std::string("update"));  // models before this key predicted updates
-    bool known = false;
-    for (auto o : {StepperArchitecture::Output::Update, StepperArchitecture::Output::NextOffset, StepperArchitecture::Output::Gated})
-      if (output == outputName(o)) arch.output = o, known = true;
-    if (!known)
-      throw Error(SourceLoc{configPath}, "architecture.output must be \"update\", \"next offset\" or \"gated\", got \"" + output + "\"");
+    if (output != "update" && output != "next offset")
+      throw Error(SourceLoc{configPath}, "architecture.output must be \"update\" or \"next offset\", got \"" + output + "\"");
+    arch.output = output == "next offset" ? StepperArchitecture::Output::NextOffset : StepperArchitecture::Output::Update;
     const auto& nj = c.at("normalisers");
     StepperNormalisers norm;
     norm.cell = vec(nj.at("cell"));
