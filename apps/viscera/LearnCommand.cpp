@@ -90,7 +90,7 @@ struct LearnTrainCli {
   bool quiet = false;
 };
 
-// The command as typed, for the model's record (flags and values in the order CLI11 parsed them).
+// The command as typed, for the model's record (flags in the order they are declared, each with its values).
 std::string trainCommand(const CLI::App& train) {
   std::string s = "viscera learn train";
   for (const std::string& d : train.get_option("data")->results()) s += " " + d;
@@ -236,10 +236,16 @@ int evaluateModel(const LearnEvalCli& c) {
   report["segment"] = c.segment;
   std::ostringstream csv, table;
   csv << "rollout,t,model,no_motion\n";
-  table << "rollout            segment       model - FEM, mean (sd)   no motion - FEM   ratio\n";
+  {
+    char header[120];  // aligned with the rows below
+    std::snprintf(header, sizeof header, "%-18s %11s   %-27s%9s %8s %7s\n", "rollout", "segment", "model - FEM, mean (sd)", "no motion", "",
+                  "ratio");
+    table << header;
+  }
   double all = 0, allBase = 0, frames = 0, seconds = 0, worst = 0, worstRatio = 1e300;
-  // A segment where the FEM stays at rest (its distance from rest a thousandth of the recording's
-  // mean, i.e. round-off) has no ratio to speak of: it is marked and left out of the smallest ratio.
+  // A segment where the FEM stays at rest (its distance from rest at most a thousandth of the
+  // recording's mean) has no ratio to speak of: it is marked and left out of the smallest ratio; the
+  // model's error there still counts in the worst segment.
   double baseSum = 0, baseFrames = 0;
   for (const auto& e : evals)
     if (e.time.size() >= 2) baseSum += e.baselineMean * (e.time.size() - 1), baseFrames += e.time.size() - 1;
@@ -277,11 +283,12 @@ int evaluateModel(const LearnEvalCli& c) {
   report["msPerFrame"] = 1e3 * seconds / frames;
   std::cout << table.str();
   char line[240];
+  char smallest[32];
+  std::snprintf(smallest, sizeof smallest, worstRatio < 1e300 ? "%.1f" : "none", worstRatio);
   std::snprintf(line, sizeof line,
-                "all: model - FEM %.3f, no motion - FEM %.3f (ratio %.1f); worst segment %.3f, smallest segment ratio %.1f "
+                "all: model - FEM %.3f, no motion - FEM %.3f (ratio %.1f); worst segment %.3f, smallest segment ratio %s "
                 "(segments where the FEM moves); %.2f ms per frame\n",
-                all / frames, allBase / frames, allBase / std::max(1e-300, all), worst, worstRatio < 1e300 ? worstRatio : 0.0,
-                1e3 * seconds / frames);
+                all / frames, allBase / frames, allBase / std::max(1e-300, all), worst, smallest, 1e3 * seconds / frames);
   std::cout << line;
   const fs::path dir(c.out);
   writeFileAtomic((dir / "errors.csv").string(), csv.str());
@@ -435,7 +442,7 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   train->add_option("--validation-time", t->options.validationTime, "time each held-out rollout is rolled out over (20)");
   train->add_option("--schedule", t->schedule,
                     "stepper: the learning rate halves after --patience epochs without a better held-out rollout "
-                    "(plateau), or follows a half cosine to zero over --epochs (cosine)")
+                    "(plateau), or follows a half cosine from --lr towards zero over --epochs (cosine)")
       ->transform(CLI::IsMember({"plateau", "cosine"}, CLI::ignore_case))
       ->default_str("plateau");
   train->add_option("--patience", t->options.patience, "stepper, plateau schedule: epochs without a better held-out rollout before the rate halves (3)");
@@ -453,10 +460,10 @@ void addLearnCommand(CLI::App& app, std::function<int()>& action) {
   auto* ev = cmd->add_subcommand("eval", "report a learned stepper's error against the FEM, or a corrector's effect on cloud distances");
   ev->footer("A stepper: each rollout is stepped by the model from its first frame, driven by the recorded instrument; per\n"
              "segment of --segment the mean node distance to the FEM's nodes is reported beside that of the rest mesh (no\n"
-             "motion) and their ratio (\"at rest\" where the FEM does not move, which has none). A corrector: per frame of the pairs, without and with the correction, the mean squared and the mean\n"
-             "distance from the cloud to the vertices of the surface refined three times (the loss; the mean squared one is\n"
-             "the dissertation's Table 4-3), and the mean distance to the exact surface. Writes eval.json, errors.csv (per\n"
-             "frame) and eval.png into --out.");
+             "motion) and their ratio (\"at rest\" where the FEM does not move). A corrector: per frame of the pairs, without\n"
+             "and with the correction, the mean squared and the mean distance from the cloud to the vertices of the surface\n"
+             "refined three times (the loss; the mean squared one is the dissertation's Table 4-3), and the mean distance to\n"
+             "the exact surface. Writes eval.json, errors.csv (per frame) and eval.png into --out.");
   ev->add_option("model", e->model, "model folder")->required();
   ev->add_option("data", e->data, "rollout folder (a stepper) or pair folder (a corrector)")->required();
   ev->add_option("--out", e->out, "folder for the report")->required();

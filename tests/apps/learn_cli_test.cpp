@@ -1,7 +1,7 @@
 // `viscera learn record`, `train` and `eval` through the command line: the shipped stepper rolled
 // out over the scene's own 80 s palpation, with the report's per-segment figures checked against
-// each other; a missing model refused with exit code 2 naming it; training's choice words reach the
-// model and its record as typed.
+// each other; a missing model refused with exit code 2 naming it; training's choice words, in any
+// case, reach the model and its record.
 #include <gtest/gtest.h>
 
 #include <algorithm>

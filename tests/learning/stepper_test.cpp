@@ -144,6 +144,11 @@ TEST_F(StepperTest, AModelForAnotherMeshOrArchitectureIsRefused) {
   e = errorOf([&] { Stepper::load(dir / "m"); });
   EXPECT_NE(e.find("not the mesh the model was trained on"), std::string::npos) << e;
   EXPECT_NE(errorOf([&] { Stepper::load(dir / "nothing"); }).find("not a model folder"), std::string::npos);
+  // A format version this build does not know.
+  config["version"] = 3;
+  spit(dir / "m/config.json", config.dump());
+  e = errorOf([&] { Stepper::load(dir / "m"); });
+  EXPECT_NE(e.find("version 3 of a stepper model"), std::string::npos) << e;
 }
 
 TEST_F(StepperTest, LearnedStepperStepsTheSceneAsTheModelDoes) {
@@ -263,7 +268,7 @@ TEST_F(StepperTest, CosineScheduleLowersTheRateAlongAHalfCosine) {
   o.threads = 1;
   o.learningRate = 1e-3;
   o.schedule = RateSchedule::Cosine;
-  o.patience = 1;  // would halve the rate after any epoch that is not the best, were the schedule plateau
+  o.patience = 1;  // the plateau schedule would halve the rate after any epoch that is not the best
   std::vector<double> rates;
   trainStepper(o, [&](const EpochReport& r) { rates.push_back(r.learningRate); });
   // 0.5 (1 + cos(pi k / 3)) for k = 0, 1, 2: 1, 3/4, 1/4 of the initial rate.
@@ -272,4 +277,16 @@ TEST_F(StepperTest, CosineScheduleLowersTheRateAlongAHalfCosine) {
   EXPECT_NEAR(rates[1], 7.5e-4, 1e-12);
   EXPECT_NEAR(rates[2], 2.5e-4, 1e-12);
   EXPECT_EQ(nlohmann::json::parse(Stepper::load(dir / "model").training())["rateSchedule"], "cosine");
+  // The checkpoint holds the rate in use, not one halved for patience.
+  const auto state = nlohmann::json::parse(slurp(dir / "model/checkpoint/state.json"));
+  EXPECT_NEAR(state["learningRate"].get<double>(), 2.5e-4, 1e-12);
+  // Resuming goes on with the checkpoint's schedule, or not at all.
+  o.resume = true;
+  o.epochs = 6;
+  std::string e = errorOf([&] { trainStepper(o, {}); });
+  EXPECT_NE(e.find("runs over 3 epochs; resume with --epochs 3"), std::string::npos) << e;
+  o.epochs = 3;
+  o.schedule = RateSchedule::Plateau;
+  e = errorOf([&] { trainStepper(o, {}); });
+  EXPECT_NE(e.find("resume with --schedule cosine"), std::string::npos) << e;
 }

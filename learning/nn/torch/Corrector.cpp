@@ -91,7 +91,7 @@ void TorchCorrector::save(const std::string& folder, const std::string& training
 
 std::unique_ptr<Corrector::Impl> loadTorchCorrector(const std::string& folder) {
   std::string configPath;
-  const nlohmann::json c = readModelConfig(folder, "corrector", configPath);
+  const nlohmann::json c = readModelConfig(folder, "corrector", configPath, 1);
   std::unique_ptr<TorchCorrector> impl;
   try {
     const auto& a = c.at("architecture");

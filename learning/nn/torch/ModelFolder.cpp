@@ -17,7 +17,7 @@ std::string hexFingerprint(std::uint64_t hash) {
   return s.str();
 }
 
-nlohmann::json readModelConfig(const std::string& folder, const std::string& kind, std::string& configPath) {
+nlohmann::json readModelConfig(const std::string& folder, const std::string& kind, std::string& configPath, int newestVersion) {
   configPath = (std::filesystem::path(folder) / "config.json").string();
   if (!std::filesystem::is_directory(folder)) throw Error(SourceLoc{folder}, "not a model folder (no such folder)");
   nlohmann::json c;
@@ -28,6 +28,10 @@ nlohmann::json readModelConfig(const std::string& folder, const std::string& kin
   }
   if (!c.is_object() || c.value("format", "") != "viscera model") throw Error(SourceLoc{configPath}, "format is not \"viscera model\"");
   if (c.value("kind", "") != kind) throw Error(SourceLoc{configPath}, "is a " + c.value("kind", std::string("?")) + " model, not a " + kind);
+  const nlohmann::json& version = c.contains("version") ? c.at("version") : nlohmann::json(1);
+  if (!version.is_number_integer() || version.get<int>() < 1 || version.get<int>() > newestVersion)
+    throw Error(SourceLoc{configPath}, "version " + version.dump() + " of a " + kind + " model; this Viscera reads versions 1 to " +
+                                           std::to_string(newestVersion) + " (a newer Viscera wrote it?)");
   return c;
 }
 

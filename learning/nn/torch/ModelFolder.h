@@ -12,9 +12,10 @@ namespace viscera::learning {
 
 std::string hexFingerprint(std::uint64_t hash);
 
-// Reads folder/config.json (its path in `configPath`) and checks that it is a model of `kind`.
-// Throws Error naming the folder or the file.
-nlohmann::json readModelConfig(const std::string& folder, const std::string& kind, std::string& configPath);
+// Reads folder/config.json (its path in `configPath`) and checks that it is a model of `kind`, of a
+// format version from 1 to `newestVersion` (a missing version is 1). Throws Error naming the folder
+// or the file.
+nlohmann::json readModelConfig(const std::string& folder, const std::string& kind, std::string& configPath, int newestVersion);
 
 // The "mesh" entry: mesh.bin, the mesh's counts and fingerprint.
 nlohmann::ordered_json meshEntry(const RestMesh& mesh, std::uint64_t hash);

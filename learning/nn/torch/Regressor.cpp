@@ -287,7 +287,7 @@ std::vector<float> floats(const nlohmann::json& j, size_t size, const std::strin
 
 std::unique_ptr<Regressor::Impl> loadTorchRegressor(const std::string& folder) {
   std::string configPath;
-  const nlohmann::json c = readModelConfig(folder, "regressor", configPath);
+  const nlohmann::json c = readModelConfig(folder, "regressor", configPath, 1);
   std::unique_ptr<TorchRegressor> impl;
   try {
     const auto& ar = c.at("architecture");

@@ -260,7 +260,7 @@ void TorchStepper::save(const std::string& folder, const std::string& training) 
   saveParameters(*m.net, (fs::path(folder) / "weights.pt").string());
   nlohmann::ordered_json c;
   c["format"] = "viscera model";
-  c["version"] = 1;
+  c["version"] = 2;  // 2: architecture.output
   c["kind"] = "stepper";
   c["architecture"] = {{"network", "graph U-Net"},
                        {"convolution", "self + neighbour mean (GraphSAGE mean)"},
@@ -287,7 +287,7 @@ void TorchStepper::save(const std::string& folder, const std::string& training) 
 
 std::unique_ptr<Stepper::Impl> loadTorchStepper(const std::string& folder) {
   std::string configPath;
-  const nlohmann::json c = readModelConfig(folder, "stepper", configPath);
+  const nlohmann::json c = readModelConfig(folder, "stepper", configPath, 2);
   std::unique_ptr<TorchStepper> impl;
   try {
     const auto& a = c.at("architecture");

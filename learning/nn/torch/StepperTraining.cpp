@@ -111,7 +111,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
 
   const fs::path out(o.out), checkpointDir = out / "checkpoint";
   int startEpoch = 1, sinceBest = 0, bestEpoch = 0;
-  double bestError = std::numeric_limits<double>::infinity(), lr = o.learningRate;
+  double bestError = std::numeric_limits<double>::infinity(), lr = o.learningRate, initialLr = o.learningRate;
   std::optional<Stepper> model;
   if (o.resume) {
     model.emplace(loadTorchStepper(checkpointDir.string()));
@@ -126,6 +126,15 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
       bestEpoch = st.at("bestEpoch").get<int>();
       if (st.contains("bestError")) bestError = st.at("bestError").get<double>();
       lr = st.at("learningRate").get<double>();
+      // The schedule goes on as it began: its kind, its initial rate and (cosine) its length are the
+      // checkpoint's. A checkpoint from before they were stored ran the plateau schedule.
+      const std::string schedule = st.value("schedule", std::string("plateau"));
+      if (schedule != scheduleName(o.schedule))
+        throw Error(SourceLoc{statePath}, "--schedule: the checkpoint was trained with the " + schedule + " schedule; resume with --schedule " + schedule);
+      initialLr = st.value("initialLearningRate", o.learningRate);
+      if (o.schedule == RateSchedule::Cosine && st.at("epochs").get<int>() != o.epochs)
+        throw Error(SourceLoc{statePath}, "--epochs: the checkpoint's cosine schedule runs over " + std::to_string(st.at("epochs").get<int>()) +
+                                              " epochs; resume with --epochs " + std::to_string(st.at("epochs").get<int>()));
     } catch (const nlohmann::json::exception& e) {
       throw Error(SourceLoc{statePath}, std::string("malformed checkpoint state: ") + e.what());
     }
@@ -200,7 +209,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
     std::mt19937_64 rng(o.seed * 1000003ull + static_cast<std::uint64_t>(epoch));
     std::vector<Sample> order = samples;
     std::shuffle(order.begin(), order.end(), rng);
-    if (o.schedule == RateSchedule::Cosine) setLr(optimizer, cosineRate(o.learningRate, epoch, o.epochs));
+    if (o.schedule == RateSchedule::Cosine) setLr(optimizer, cosineRate(initialLr, epoch, o.epochs));
     const bool augment = epoch > o.warmup;
     m.net->train();
     double lossSum = 0;
@@ -291,7 +300,7 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
     trainingRecord["heldOutRollouts"] = std::vector<std::string>(files.begin() + trained, files.end());
     trainingRecord["samples"] = samples.size();
     trainingRecord["optimizer"] = "Adam";
-    trainingRecord["initialLearningRate"] = o.learningRate;
+    trainingRecord["initialLearningRate"] = initialLr;
     trainingRecord["rateSchedule"] = scheduleName(o.schedule);
     trainingRecord["batch"] = o.batch;
     trainingRecord["warmupEpochs"] = o.warmup;
@@ -316,7 +325,9 @@ void torchTrainStepper(const StepperTrainOptions& o, const std::function<void(co
     trainingRecord["epoch"] = epoch;
     model->save(checkpointDir.string(), trainingRecord.dump());
     saveOptimizer(optimizer, (checkpointDir / "optimizer.pt").string());
-    nlohmann::ordered_json st = {{"epoch", epoch}, {"sinceBest", sinceBest}, {"bestEpoch", bestEpoch}, {"learningRate", lrOf(optimizer)}};
+    nlohmann::ordered_json st = {{"epoch", epoch},       {"sinceBest", sinceBest},          {"bestEpoch", bestEpoch},
+                                 {"learningRate", lrOf(optimizer)}, {"schedule", scheduleName(o.schedule)},
+                                 {"initialLearningRate", initialLr}, {"epochs", o.epochs}};
     if (std::isfinite(bestError)) st["bestError"] = bestError;
     writeFileAtomic((checkpointDir / "state.json").string(), st.dump(2) + "\n");
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - e0).count();
