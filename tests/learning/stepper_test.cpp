@@ -64,6 +64,28 @@ std::string learnedScene(const std::string& model, const std::string& dt = "0.03
 )";
 }
 
+// Records `rollouts` quick palpations of the coarse phantom into dir/rec and returns options that
+// train a tiny network on them into dir/model, one epoch on one thread.
+StepperTrainOptions tinyTraining(const fs::path& dir, int rollouts, double time, std::uint64_t seed) {
+  RecordOptions rec;
+  rec.scene = kCoarse;
+  rec.out = dir / "rec";
+  rec.rollouts = rollouts;
+  rec.time = time;
+  rec.speedMin = 15;
+  rec.speedMax = 20;
+  rec.seed = seed;
+  record(rec);
+  StepperTrainOptions o;
+  o.data = {dir / "rec"};
+  o.out = dir / "model";
+  o.architecture = StepperArchitecture{8, 2, 2, 1.0};
+  o.epochs = 1;
+  o.warmup = 0;
+  o.threads = 1;
+  return o;
+}
+
 class StepperTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -186,25 +208,9 @@ TEST_F(StepperTest, LearnedStepperStepsTheSceneAsTheModelDoes) {
 
 TEST_F(StepperTest, TrainingWritesAModelAndResumesFromItsCheckpoint) {
   TempDir dir;
-  RecordOptions rec;
-  rec.scene = kCoarse;
-  rec.out = dir / "rec";
-  rec.rollouts = 3;
-  rec.time = 6;
-  rec.speedMin = 15;
-  rec.speedMax = 20;
-  rec.seed = 11;
-  record(rec);
-
-  StepperTrainOptions o;
-  o.data = {dir / "rec"};
-  o.out = dir / "model";
-  o.architecture = StepperArchitecture{8, 2, 2, 1.0};
-  o.epochs = 1;
+  StepperTrainOptions o = tinyTraining(dir.path(), 3, 6, 11);
   o.batch = 16;
-  o.warmup = 0;
   o.validationTime = 1;
-  o.threads = 1;
   std::vector<EpochReport> reports;
   trainStepper(o, [&](const EpochReport& r) { reports.push_back(r); });
   ASSERT_EQ(reports.size(), 1u);
@@ -247,25 +253,9 @@ TEST_F(StepperTest, TrainingWritesAModelAndResumesFromItsCheckpoint) {
 
 TEST_F(StepperTest, CosineScheduleLowersTheRateAlongAHalfCosine) {
   TempDir dir;
-  RecordOptions rec;
-  rec.scene = kCoarse;
-  rec.out = dir / "rec";
-  rec.rollouts = 2;
-  rec.time = 5;
-  rec.speedMin = 15;
-  rec.speedMax = 20;
-  rec.seed = 12;
-  record(rec);
-
-  StepperTrainOptions o;
-  o.data = {dir / "rec"};
-  o.out = dir / "model";
-  o.architecture = StepperArchitecture{8, 2, 2, 1.0};
+  StepperTrainOptions o = tinyTraining(dir.path(), 2, 5, 12);
   o.epochs = 3;
-  o.batch = 32;
-  o.warmup = 0;
   o.validationTime = 0.5;
-  o.threads = 1;
   o.learningRate = 1e-3;
   o.schedule = RateSchedule::Cosine;
   o.patience = 1;  // the plateau schedule would halve the rate after any epoch that is not the best
