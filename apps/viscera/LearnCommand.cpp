@@ -246,10 +246,10 @@ int evaluateModel(const LearnEvalCli& c) {
   // A segment where the FEM stays at rest (its distance from rest at most a thousandth of the
   // recording's mean) has no ratio to speak of: it is marked and left out of the smallest ratio; the
   // model's error there still counts in the worst segment.
-  double baseSum = 0, baseFrames = 0;
   for (const auto& e : evals)
-    if (e.time.size() >= 2) baseSum += e.baselineMean * (e.time.size() - 1), baseFrames += e.time.size() - 1;
-  const double atRest = 1e-3 * baseSum / std::max(1.0, baseFrames);
+    if (e.time.size() >= 2) allBase += e.baselineMean * (e.time.size() - 1), frames += e.time.size() - 1;
+  if (frames == 0) throw Error(SourceLoc{c.data}, "no rollout has two frames or more: nothing to evaluate");
+  const double atRest = 1e-3 * allBase / frames;
   auto& list = report["rollouts"] = nlohmann::ordered_json::array();
   for (size_t r = 0; r < evals.size(); ++r) {
     const auto& e = evals[r];
@@ -272,10 +272,9 @@ int evaluateModel(const LearnEvalCli& c) {
     }
     for (size_t f = 0; f < e.time.size(); ++f) csv << name << "," << e.time[f] << "," << e.error[f] << "," << e.baseline[f] << "\n";
     const double n = static_cast<double>(e.time.size() - 1);
-    all += e.mean * n, allBase += e.baselineMean * n, frames += n, seconds += e.seconds;
+    all += e.mean * n, seconds += e.seconds;
     list.push_back(j);
   }
-  if (frames == 0) throw Error(SourceLoc{c.data}, "no rollout has two frames or more: nothing to evaluate");
   report["mean"] = all / frames;
   report["noMotionMean"] = allBase / frames;
   report["worstSegmentMean"] = worst;
