@@ -200,8 +200,8 @@ void SurfaceCollisionModel::init() {
   fitBoxes(X, *bvh);
   bvh->tree.build(bvh->boxes);
   bvh0_ = std::move(bvh);
-  static_ = !rigid_;
-  for (const Node* n = &state_->node(); n && static_; n = n->parent()) static_ = !n->find<OdeSolver>();
+  // Nothing moves a body without a solver in its node (a solver above moves rigid bodies only).
+  static_ = !rigid_ && !state_->node().find<OdeSolver>();
 }
 
 namespace {
@@ -745,8 +745,8 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
             return d;
           }
     }
-  // Each surface's contacts: with the instruments' spheres, then, under the penalty response, with
-  // the vertices of other bodies' surfaces (both ways, as SOFA's point-triangle tests).
+  // Each surface's contacts: with the instruments' spheres, then with the vertices of other bodies'
+  // surfaces (both ways, as SOFA's point-triangle tests).
   std::vector<std::vector<Contact>> found(surfaces_.size());
   std::vector<ContactSettings> own(surfaces_.size(), settings_);
   for (size_t i = 0; i < surfaces_.size(); ++i) {
@@ -775,32 +775,11 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
     for (size_t j = 0; j < surfaces_.size(); ++j) {
       const SurfaceCollisionModel *a = surfaces_[i], *b = surfaces_[j];
       if (a == b || !a->active() || !b->active() || a->body() == b->body() || (a->isStatic() && b->isStatic())) continue;
-      if (settings_.response == ContactSettings::Response::Penalty) {
-        // The vertices of b against the features of a.
-        ContactSettings pair = settings_;
-        pair.contactDistance += a->ownContactDistance() + b->ownContactDistance();
-        pair.alarmDistance += a->ownContactDistance() + b->ownContactDistance();
-        a->detectVertices(s, *b, pair, found[i], found[j]);
-        continue;
-      }
-      // The constraint response handles instruments' spheres only: a vertex coming within the
-      // alarm distance of another body's surface (at least a twentieth of the surface's mean edge)
-      // fails the step instead of passing through unseen.
-      const double margin =
-          std::max({settings_.alarmDistance, settings_.contactDistance, 0.05 * std::max(a->meanEdgeLength(), b->meanEdgeLength())});
-      const Eigen::Matrix3Xd& xa = a->surfacePositions(s);
-      for (int v : a->vertices()) {
-        if (b->distanceTo(s, xa.col(v), margin, b->surfacePositions(s)) < margin) {
-          Diverged bad;
-          bad.step = stepIndex;
-          bad.time = t;
-          bad.reason = "the surfaces of '" + a->name() + "' (" + a->node().path() + ") and '" + b->name() + "' (" +
-                       b->node().path() + ") touch: the constraint response handles instruments' spheres against "
-                       "surfaces, not two bodies (the penalty response does)";
-          bad.object = a->mstate().name();
-          return bad;
-        }
-      }
+      // The vertices of b against the features of a (penalty forces on both, or a constraint pair).
+      ContactSettings pair = settings_;
+      pair.contactDistance += a->ownContactDistance() + b->ownContactDistance();
+      pair.alarmDistance += a->ownContactDistance() + b->ownContactDistance();
+      a->detectVertices(s, *b, pair, found[i], found[j]);
     }
   for (size_t i = 0; i < surfaces_.size(); ++i)
     if (surfaces_[i]->active()) surfaces_[i]->setContacts(s, std::move(found[i]), own[i]);

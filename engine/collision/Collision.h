@@ -11,14 +11,14 @@
 //    system (the surface model is a ForceField of the tissue);
 //  - constraint: non-penetration with Coulomb friction, solved after the free motion by the
 //    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
-// Two bodies (penalty only): each vertex of one surface is a point of radius 0 against the other's
-// features, with SOFA's stiffness k1 k2 / contactDistance; the contact on the feature and its mirror
-// on the vertex (opposite normal, same gap, active together from detection) each act on their own
-// body, implicitly in that body's solve, with the other body where it stands (solvers run in turn,
-// as SOFA's: momentum is not exchanged exactly between two free bodies). A fixed surface (no
-// solver) takes its side without moving; a rigid body's side reaches it as a wrench (RigidMapping).
-// The constraint response still handles instruments' spheres only: a step in which two bodies'
-// surfaces touch fails, naming both.
+// Two bodies: each vertex of one surface is a point of radius 0 against the other's features; the
+// contact on the feature and its mirror on the vertex (opposite normal, same gap) are the pair's two
+// sides. Penalty: SOFA's stiffness k1 k2 / contactDistance, each side acting on its own body,
+// implicitly in that body's solve, with the other body where it stands (solvers run in turn, as
+// SOFA's: momentum is not exchanged exactly between two free bodies); a rigid body's side reaches it
+// as a wrench (RigidMapping). Constraint: one non-penetration and friction row block per pair,
+// solved with every other pair touching the same bodies (Constraint.cpp). A fixed surface (nothing
+// moves its body) takes its side without moving.
 #pragma once
 
 #include <Eigen/Core>
@@ -140,7 +140,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // body's surface moves with it; its contacts with other bodies reach it as a wrench, and an
   // instrument's sphere touching it fails the step.
   RigidObject* rigidBody() const { return rigid_; }
-  // A surface nothing integrates (SOFA's fixed obstacle: no ODE solver above its body, no rigid body).
+  // A surface nothing integrates (SOFA's fixed obstacle: no ODE solver in its body's node, no rigid body).
   bool isStatic() const { return static_; }
   // What moves the surface: the rigid body, else the body the forces act on.
   const void* body() const { return rigid_ ? static_cast<const void*>(rigid_) : static_cast<const void*>(state_); }

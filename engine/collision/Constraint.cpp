@@ -6,7 +6,9 @@
 // Rows of a contact (tissue point p = sum w_i x_i, n towards the sphere, t1 t2 tangents):
 //   gap   g = g_free - n . dp           (>= 0; normal force lambda_n >= 0 pushes the tissue along -n)
 //   slip  s = t . (p - p_start) - t . (sphere point displacement over the step)
-// with |lambda_t| <= mu lambda_n, lambda_t opposing the slip while sliding.
+// with |lambda_t| <= mu lambda_n, lambda_t opposing the slip while sliding. Contacts between the
+// surfaces of two bodies (rigid bodies, deformable ones, fixed obstacles) have the same rows on the
+// relative motion of the two sides, and are solved together (solvePairs).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -18,6 +20,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidMapping.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/LinearSolver.h"
 
@@ -191,6 +194,90 @@ class ConstraintCorrection : public Component, public Stateful {
   mutable std::mutex restMutex_;
 };
 
+// The compliance of an integrated rigid body (UncoupledConstraintCorrection in its node): a wrench
+// W over the step moves it by xFactor / mFactor M^-1 W (translation, then rotation vector), with
+// M = diag(m I, R I_body R^T) as the body's solver integrates it, or SOFA's `compliance` (1/m and
+// the six upper entries of the inverse inertia) or `defaultCompliance` in place of M^-1; the
+// velocities change by vFactor / xFactor of that (SOFA: dx = dt dv).
+class RigidConstraintCorrection : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    body_ = &contextRigid(*this, "mstate");
+    scene().initComponent(*body_);
+    for (const Node* n = &body_->node(); n && !ode_; n = n->parent()) ode_ = n->find<OdeSolver>();
+    if (!ode_) throw error("rigid body '" + body_->name() + "' has no ODE solver in its node or above it");
+    // The solver initialises the body's node, this component included: its step response is read
+    // when the constraint solver runs.
+    const std::vector<double> c = attrs_.reals("compliance");
+    if (!c.empty()) {
+      if (c.size() != 7) throw error("compliance", "a rigid body's compliance is 7 numbers: 1/m and the upper inverse inertia (xx xy xz yy yz zz)");
+      given_ = true;
+      linear_ = c[0];
+      rotational_ << c[1], c[2], c[3], c[2], c[4], c[5], c[3], c[5], c[6];
+    } else if (attrs_.isSet("defaultCompliance")) {
+      given_ = true;
+      linear_ = attrs_.real("defaultCompliance");
+      rotational_.setIdentity();
+    }
+    for (RigidMapping* m : scene().all<RigidMapping>()) {
+      scene().initComponent(*m);
+      if (&m->body() == body_) mappings_.push_back(m);
+    }
+  }
+  RigidObject& body() const { return *body_; }
+
+  // The 6x6 compliance over a step of size h at state s.
+  Eigen::Matrix<double, 6, 6> compliance(const State& s, double h) const {
+    const StepResponse r = response(h);
+    Eigen::Matrix<double, 6, 6> C = Eigen::Matrix<double, 6, 6>::Zero();
+    const double f = r.xFactor / r.mFactor;
+    if (given_) {
+      C.topLeftCorner<3, 3>() = f * linear_ * Eigen::Matrix3d::Identity();
+      C.bottomRightCorner<3, 3>() = f * rotational_;
+    } else if (!body_->driven && body_->mass > 0) {  // else held or driven: nothing moves it
+      C.topLeftCorner<3, 3>() = f / body_->mass * Eigen::Matrix3d::Identity();
+      const Eigen::Matrix3d R = body_->live(s).q.toRotationMatrix();
+      C.bottomRightCorner<3, 3>() = f * R * body_->inertia.inverse() * R.transpose();
+    }
+    return C;
+  }
+  // Moves the body by C W (W: force and torque about its origin) and its velocity to match; the
+  // mapped points follow.
+  void apply(State& s, const Eigen::Matrix<double, 6, 1>& wrench, double h) const {
+    const StepResponse r = response(h);
+    const Eigen::Matrix<double, 6, 1> d = compliance(s, h) * wrench;
+    RigidObject::Live& b = body_->live(s);
+    for (int k = 0; k < 3; ++k) {
+      if (!body_->held[k]) {
+        b.p[k] += d[k];
+        b.v[k] += d[k] * r.vFactor / r.xFactor;
+      }
+    }
+    Eigen::Vector3d turn = d.tail<3>();
+    for (int k = 0; k < 3; ++k)
+      if (body_->held[3 + k]) turn[k] = 0;
+    b.w += turn * (r.vFactor / r.xFactor);
+    if (turn.norm() > 0) b.q = (Eigen::Quaterniond(Eigen::AngleAxisd(turn.norm(), turn.normalized())) * b.q).normalized();
+    for (const RigidMapping* m : mappings_) m->apply(s);
+  }
+
+ private:
+  StepResponse response(double h) const {
+    const auto r = ode_->stepResponse(h);
+    if (!r || !(r->xFactor > 0))
+      throw error("the solver moving rigid body '" + body_->name() + "' gives no step response (use EulerImplicitSolver)");
+    return *r;
+  }
+
+  RigidObject* body_ = nullptr;
+  OdeSolver* ode_ = nullptr;
+  bool given_ = false;
+  double linear_ = 0;
+  Eigen::Matrix3d rotational_ = Eigen::Matrix3d::Identity();
+  std::vector<const RigidMapping*> mappings_;
+};
+
 class GenericConstraintSolver : public Component, public ConstraintSolver, public Stateful {
  public:
   using Component::Component;
@@ -218,6 +305,10 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       scene().initComponent(*c);
       corrections_.push_back(c);
     }
+    for (RigidConstraintCorrection* c : scene().all<RigidConstraintCorrection>()) {
+      scene().initComponent(*c);
+      rigidCorrections_.push_back(c);
+    }
   }
 
   std::optional<Diverged> solve(State& st, const CollisionPipeline& pipe, double h, int stepIndex,
@@ -228,14 +319,12 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     if (pipe.settings().response != ContactSettings::Response::Constraint) return std::nullopt;
     const double mu = muOverride_ >= 0 ? muOverride_ : pipe.settings().mu;
     for (const SurfaceCollisionModel* surf : pipe.surfaces()) {
-      if (!surf->active() || surf->contacts(st).empty()) continue;
-      const ConstraintCorrection* cc = correctionFor(surf->mstate());
-      if (!cc) throw surf->error("constraint contact needs a constraint correction in the node of '" + surf->mstate().name() +
-                                 "' (PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or "
-                                 "UncoupledConstraintCorrection)");
-      if (auto bad = solveBody(st, *surf, *cc, mu, h, stepIndex, time)) return bad;
+      if (!surf->active() || surf->rigidBody() || surf->isStatic()) continue;
+      const auto& cs = surf->contacts(st);
+      if (std::none_of(cs.begin(), cs.end(), [](const Contact& c) { return c.sphere; })) continue;
+      if (auto bad = solveBody(st, *surf, deformableCorrection(*surf), mu, h, stepIndex, time)) return bad;
     }
-    return std::nullopt;
+    return solvePairs(st, pipe, mu, h, stepIndex, time);
   }
   int lastIterations(const State& s) const override { return stateIn<Live>(s).iterations; }
   double lastResidual(const State& s) const override { return stateIn<Live>(s).residual; }
@@ -246,10 +335,227 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       if (c->typeName() == "FreeMotionAnimationLoop") return true;
     return false;
   }
-  ConstraintCorrection* correctionFor(const MechanicalObject& m) const {
+  const ConstraintCorrection& deformableCorrection(const SurfaceCollisionModel& surf) const {
     for (ConstraintCorrection* c : corrections_)
-      if (&c->mstate() == &m) return c;
-    return nullptr;
+      if (&c->mstate() == &surf.mstate()) return *c;
+    throw surf.error("constraint contact needs a constraint correction in the node of '" + surf.mstate().name() +
+                     "' (PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or UncoupledConstraintCorrection)");
+  }
+  // The correction of the rigid body a surface is on, or null when nothing moves the body.
+  const RigidConstraintCorrection* rigidCorrection(const SurfaceCollisionModel& surf) const {
+    const RigidObject& b = *surf.rigidBody();
+    for (RigidConstraintCorrection* c : rigidCorrections_)
+      if (&c->body() == &b) return c;
+    if (b.driven || !(b.mass > 0)) return nullptr;
+    throw surf.error("constraint contact with rigid body '" + b.name() + "' needs UncoupledConstraintCorrection in its node");
+  }
+
+  // One side of a contact between two bodies: the body that moves under it (none for a fixed
+  // surface or a driven body), how the contact point follows it, and the sign of the force on it.
+  struct Side {
+    const SurfaceCollisionModel* surf = nullptr;
+    const Contact* c = nullptr;  // this side's own record of the contact (the pair's, or its mirror)
+    const ConstraintCorrection* deformable = nullptr;
+    const RigidConstraintCorrection* rigid = nullptr;
+    Eigen::Vector3d arm = Eigen::Vector3d::Zero();  // rigid: contact point - body origin
+    double sign = 1;
+    const void* key() const { return deformable ? static_cast<const void*>(deformable) : static_cast<const void*>(rigid); }
+  };
+
+  // Contacts between the surfaces of two bodies (a vertex of one against a feature of the other),
+  // solved together: a body touching several others couples their contacts. The pair's force
+  // lambda pushes the first side along -n and the second along +n; the Delassus operator sums each
+  // moving body's compliance between the contact points (a rigid body's C(p, q) = J_p C J_q^T with
+  // J_p = [I, -[p - origin]x]).
+  std::optional<Diverged> solvePairs(State& st, const CollisionPipeline& pipe, double mu, double h, int stepIndex,
+                                     double time) const {
+    const auto& surfaces = pipe.surfaces();
+    auto indexOf = [&](const SurfaceCollisionModel* m) {
+      return static_cast<int>(std::find(surfaces.begin(), surfaces.end(), m) - surfaces.begin());
+    };
+    std::vector<std::array<Side, 2>> pairs;
+    for (int si = 0; si < static_cast<int>(surfaces.size()); ++si) {
+      const SurfaceCollisionModel* a = surfaces[si];
+      if (!a->active()) continue;
+      const auto& cs = a->contacts(st);
+      for (int ci = 0; ci < static_cast<int>(cs.size()); ++ci) {
+        const Contact& c = cs[ci];
+        if (!c.partner) continue;
+        const int pi = indexOf(c.partner);
+        if (std::make_pair(pi, c.mirror) < std::make_pair(si, ci)) continue;  // the pair is taken from its other side
+        std::array<Side, 2> p;
+        p[0].surf = a;
+        p[0].c = &c;
+        p[1].surf = c.partner;
+        p[1].c = &c.partner->contacts(st)[c.mirror];
+        p[1].sign = -1;
+        for (Side& sd : p) {
+          if (sd.surf->isStatic()) continue;
+          if (sd.surf->rigidBody()) {
+            sd.rigid = rigidCorrection(*sd.surf);
+            if (sd.rigid)
+              sd.arm = sd.c->point(sd.surf->mstate().x(st)) - sd.rigid->body().live(st).p;
+          } else {
+            sd.deformable = &deformableCorrection(*sd.surf);
+          }
+        }
+        if (p[0].key() || p[1].key()) pairs.push_back(p);
+      }
+    }
+    if (pairs.empty()) return std::nullopt;
+    Live& l = stateIn<Live>(st);
+    const int m = static_cast<int>(pairs.size());
+    std::unordered_map<const void*, ConstraintCorrection::Live*> deformableLive;
+    std::unordered_map<const void*, Eigen::Matrix<double, 6, 6>> rigidC;
+    for (const auto& p : pairs)
+      for (const Side& sd : p) {
+        if (sd.deformable && !deformableLive.count(sd.key())) deformableLive[sd.key()] = &sd.deformable->prepare(st, h);
+        if (sd.rigid && !rigidC.count(sd.key())) rigidC[sd.key()] = sd.rigid->compliance(st, h);
+      }
+    // The compliance of one body between the points of sides u and v (both on it).
+    auto C = [&](const Side& u, const Side& v) -> Eigen::Matrix3d {
+      if (u.rigid) {
+        const Eigen::Matrix<double, 6, 6>& Cr = rigidC.at(u.key());
+        Eigen::Matrix<double, 3, 6> Ju, Jv;
+        Ju << Eigen::Matrix3d::Identity(), -skew(u.arm);
+        Jv << Eigen::Matrix3d::Identity(), -skew(v.arm);
+        return Ju * Cr * Jv.transpose();
+      }
+      ConstraintCorrection::Live& cl = *deformableLive.at(u.key());
+      Eigen::Matrix3d r = Eigen::Matrix3d::Zero();
+      for (int a = 0; a < u.c->count; ++a)
+        for (int b = 0; b < v.c->count; ++b) r += u.c->w[a] * v.c->w[b] * u.deformable->block(cl, u.c->nodes[a], v.c->nodes[b]);
+      return r;
+    };
+    // Rows [-n; t1; t2] of the first side's normal; free gap and slip.
+    std::vector<Eigen::Matrix3d> R(m);
+    std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());
+    for (int i = 0; i < m; ++i) {
+      const Side &A = pairs[i][0], &B = pairs[i][1];
+      const Eigen::Vector3d& n = A.c->n;
+      const Eigen::Vector3d t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+      R[i].row(0) = -n.transpose();
+      R[i].row(1) = t1.transpose();
+      R[i].row(2) = t2.transpose();
+      const Eigen::Vector3d moveA = A.c->point(A.surf->mstate().x(st)) - A.c->p0;
+      const Eigen::Vector3d moveB = B.c->point(B.surf->mstate().x(st)) - B.c->p0;
+      const double gap = A.surf->gapAt(st, *A.c, A.surf->mstate().x(st));
+      const double slip = slipShare(A.c->gap0, gap, moveA.norm() + moveB.norm());
+      dfree[i] = Eigen::Vector3d(gap, slip * t1.dot(moveA - moveB), slip * t2.dot(moveA - moveB));
+    }
+    Eigen::MatrixXd W = Eigen::MatrixXd::Zero(3 * m, 3 * m);
+    for (int i = 0; i < m; ++i)
+      for (int j = 0; j < m; ++j) {
+        Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
+        for (const Side& u : pairs[i])
+          for (const Side& v : pairs[j])
+            if (u.key() && u.key() == v.key()) Cij += u.sign * v.sign * C(u, v);
+        W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
+      }
+    gaussSeidel(l, W, dfree, mu, lambda);
+    // Forces on each side, then every moving body corrected once.
+    std::unordered_map<const void*, Eigen::Matrix3Xd> nodeForces;
+    std::unordered_map<const void*, Eigen::Matrix<double, 6, 1>> wrenches;
+    for (int i = 0; i < m; ++i) {
+      const Eigen::Vector3d f = R[i].transpose() * lambda[i];
+      for (const Side& sd : pairs[i]) {
+        Contact& rec = const_cast<Contact&>(*sd.c);
+        rec.force = sd.sign * f;
+        rec.active = lambda[i][0] > 0;
+        if (sd.rigid) {
+          auto [it, fresh] = wrenches.try_emplace(sd.key(), Eigen::Matrix<double, 6, 1>::Zero());
+          it->second.head<3>() += rec.force;
+          it->second.tail<3>() += sd.arm.cross(rec.force);
+        } else if (sd.deformable) {
+          auto [it, fresh] = nodeForces.try_emplace(sd.key(), Eigen::Matrix3Xd::Zero(3, sd.surf->mstate().size()));
+          for (int a = 0; a < sd.c->count; ++a) it->second.col(sd.c->nodes[a]) += sd.c->w[a] * rec.force;
+        }
+      }
+    }
+    for (const auto& p : pairs)
+      for (const Side& sd : p) {
+        if (sd.rigid && wrenches.count(sd.key())) {
+          sd.rigid->apply(st, wrenches.at(sd.key()), h);
+          wrenches.erase(sd.key());
+        } else if (sd.deformable && nodeForces.count(sd.key())) {
+          ConstraintCorrection::Live& cl = *deformableLive.at(sd.key());
+          MechanicalObject::Live& s = sd.surf->mstate().live(st);
+          Eigen::Matrix3Xd dx;
+          sd.deformable->apply(cl, nodeForces.at(sd.key()), dx);
+          s.x += dx;
+          if (cl.resp.vFactor != 0) s.v += dx * (cl.resp.vFactor / cl.resp.xFactor);
+          nodeForces.erase(sd.key());
+          if (!s.x.allFinite() || !s.v.allFinite()) {
+            Diverged d;
+            d.step = stepIndex;
+            d.time = time;
+            d.reason = "constraint solver produced non-finite forces";
+            d.object = sd.surf->mstate().name();
+            return d;
+          }
+        }
+      }
+    return std::nullopt;
+  }
+
+  // The share of a step's relative tangential motion that friction acts on, from the gap at
+  // detection g0 and after the free motion g (SOFA's rule): a contact that closes during the step
+  // slips only after it touches, at the fraction tau = g0 / (g0 - g) of the step; one that opens
+  // does not slip under the contact.
+  static double slipShare(double g0, double g, double travel) {
+    if (std::abs(g0) < 1e-5 * travel && std::abs(g) < 1e-5 * travel) return 1;
+    if (std::abs(g0 - g) > 1e-3 * g0) {
+      const double tau = g0 / (g0 - g);
+      if (tau > 0 && tau < 1) return 1 - tau;
+      return g < 0 ? 1 : 0;
+    }
+    return 1;
+  }
+
+  static Eigen::Matrix3d skew(const Eigen::Vector3d& r) {
+    Eigen::Matrix3d S;
+    S << 0, -r.z(), r.y(), r.z(), 0, -r.x(), -r.y(), r.x(), 0;
+    return S;
+  }
+
+  // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by more
+  // than tolerance x the largest force.
+  void gaussSeidel(Live& l, const Eigen::MatrixXd& W, const std::vector<Eigen::Vector3d>& dfree, double mu,
+                   std::vector<Eigen::Vector3d>& lambda) const {
+    const int m = static_cast<int>(dfree.size());
+    double last = 0;
+    for (int it = 0; it < maxIt_; ++it) {
+      double change = 0, scale = 1e-300;
+      for (int i = 0; i < m; ++i) {
+        Eigen::Vector3d d = dfree[i];
+        for (int j = 0; j < m; ++j) d += W.block<3, 3>(3 * i, 3 * j) * lambda[j];
+        const Eigen::Matrix3d Wii = W.block<3, 3>(3 * i, 3 * i);
+        if (!(Wii(0, 0) > 0)) continue;  // nothing the contact could move (fixed nodes, a held body)
+        Eigen::Vector3d li = lambda[i];
+        // Normal: make the gap zero if that pushes, else release.
+        li[0] = std::max(0.0, li[0] - d[0] / Wii(0, 0));
+        d += Wii.col(0) * (li[0] - lambda[i][0]);
+        // Tangential: stick (zero slip) when that force is inside the cone |l_t| <= mu l_n; else
+        // slide, with a step along -slip projected onto the cone (SOFA's update), whose fixed point
+        // opposes the force to the slip itself. Projecting the sticking force instead would oppose
+        // it to W_tt^-1 slip, which for an anisotropic W_tt (a contact off a rigid body's centre)
+        // is not Coulomb's law.
+        const double lim = mu * li[0];
+        Eigen::Vector2d lt = li.tail<2>() - Wii.block<2, 2>(1, 1).ldlt().solve(d.tail<2>());
+        if (lt.norm() > lim) {
+          lt = li.tail<2>() - 2.0 * d.tail<2>() / (Wii(1, 1) + Wii(2, 2));
+          if (lt.norm() > lim) lt *= lim / std::max(lt.norm(), 1e-300);
+        }
+        li.tail<2>() = lt;
+        change = std::max(change, (li - lambda[i]).norm());
+        scale = std::max(scale, li.norm());
+        lambda[i] = li;
+      }
+      l.iterations = std::max(l.iterations, it + 1);
+      last = change / scale;
+      if (last <= tol_) break;
+    }
+    l.residual = std::max(l.residual, last);  // the worst of the step's problems
   }
 
   std::optional<Diverged> solveBody(State& st, const SurfaceCollisionModel& surf, const ConstraintCorrection& cc,
@@ -257,14 +563,17 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     Live& l = stateIn<Live>(st);
     const MechanicalObject& body = surf.mstate();
     MechanicalObject::Live& s = body.live(st);
-    std::vector<Contact>& cs = surf.contacts(st);
+    // The contacts with instruments' spheres (those with other bodies are solved in solvePairs).
+    std::vector<Contact*> cs;
+    for (Contact& c : surf.contacts(st))
+      if (c.sphere) cs.push_back(&c);
     const int m = static_cast<int>(cs.size());
     ConstraintCorrection::Live& ccl = cc.prepare(st, h);
     // Rows R_i = [-n^T; t1^T; t2^T] acting on the contact point.
     std::vector<Eigen::Matrix3d> R(m);
     std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());
     for (int i = 0; i < m; ++i) {
-      const Contact& c = cs[i];
+      const Contact& c = *cs[i];
       Eigen::Vector3d t1 = c.n.unitOrthogonal(), t2 = c.n.cross(t1);
       R[i].row(0) = -c.n.transpose();
       R[i].row(1) = t1.transpose();
@@ -282,39 +591,15 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     for (int j = 0; j < m; ++j)
       for (int i = 0; i < m; ++i) {
         Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
-        for (int a = 0; a < cs[i].count; ++a)
-          for (int b = 0; b < cs[j].count; ++b) Cij += cs[i].w[a] * cs[j].w[b] * cc.block(ccl, cs[i].nodes[a], cs[j].nodes[b]);
+        for (int a = 0; a < cs[i]->count; ++a)
+          for (int b = 0; b < cs[j]->count; ++b) Cij += cs[i]->w[a] * cs[j]->w[b] * cc.block(ccl, cs[i]->nodes[a], cs[j]->nodes[b]);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
-    // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by
-    // more than tolerance x the largest force.
-    for (int it = 0; it < maxIt_; ++it) {
-      double change = 0, scale = 1e-300;
-      for (int i = 0; i < m; ++i) {
-        Eigen::Vector3d d = dfree[i];
-        for (int j = 0; j < m; ++j) d += W.block<3, 3>(3 * i, 3 * j) * lambda[j];
-        const Eigen::Matrix3d& Wii = W.block<3, 3>(3 * i, 3 * i);
-        Eigen::Vector3d l = lambda[i];
-        // Normal: make the gap zero if that pushes, else release.
-        l[0] = std::max(0.0, l[0] - d[0] / Wii(0, 0));
-        d += Wii.col(0) * (l[0] - lambda[i][0]);
-        // Tangential: stick (zero slip), then project onto the cone |l_t| <= mu l_n.
-        Eigen::Vector2d lt = l.tail<2>() - Wii.block<2, 2>(1, 1).ldlt().solve(d.tail<2>());
-        const double lim = mu * l[0];
-        if (lt.norm() > lim) lt *= lim / std::max(lt.norm(), 1e-300);
-        l.tail<2>() = lt;
-        change = std::max(change, (l - lambda[i]).norm());
-        scale = std::max(scale, l.norm());
-        lambda[i] = l;
-      }
-      l.iterations = it + 1;
-      l.residual = change / scale;
-      if (l.residual <= tol_) break;
-    }
+    gaussSeidel(l, W, dfree, mu, lambda);
     // Correct the free motion: forces on the nodes, displacement C F, velocity to match.
     Eigen::Matrix3Xd F = Eigen::Matrix3Xd::Zero(3, body.size()), dx;
     for (int i = 0; i < m; ++i) {
-      Contact& c = cs[i];
+      Contact& c = *cs[i];
       c.force = R[i].transpose() * lambda[i];
       c.active = lambda[i][0] > 0;
       for (int a = 0; a < c.count; ++a) F.col(c.nodes[a]) += c.w[a] * c.force;
@@ -341,6 +626,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   double tol_ = 1e-8;
   double muOverride_ = -1;
   std::vector<ConstraintCorrection*> corrections_;
+  std::vector<RigidConstraintCorrection*> rigidCorrections_;
 };
 
 class FreeMotionAnimationLoop : public Component {
@@ -350,20 +636,6 @@ class FreeMotionAnimationLoop : public Component {
     if (node().parent()) throw error("belongs in the root node");
     if (scene().all<ConstraintSolver>().empty())
       throw error("needs a constraint solver in the root node (GenericConstraintSolver or LCPConstraintSolver)");
-  }
-};
-
-// A constraint correction in a rigid body's node (SOFA scenes give every body one). Contact on a
-// rigid body is not handled (the step fails when something touches its surfaces), so its
-// compliance is never needed: the component only says so.
-class RigidBodyCorrection : public Component {
- public:
-  using Component::Component;
-  void init() override {
-    RigidObject& body = contextRigid(*this, "mstate");
-    scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "' is on rigid body '" + body.name() +
-                    "': contact on rigid bodies is not handled (a step in which something touches its surfaces "
-                    "fails), so no compliance is used");
   }
 };
 
@@ -418,7 +690,8 @@ void registerConstraintContact(Registry& r) {
        "for the corotational stiffness, about one factorisation per step."},
       {"UncoupledConstraintCorrection",
        "Contact compliance from the lumped mass only (no coupling through the stiffness): cheapest, and a poor "
-       "model of soft tissue; for comparison with SOFA scenes."}};
+       "model of soft tissue; for comparison with SOFA scenes. In a rigid body's node: the body's mass and inertia "
+       "over its solver's step (any of the three corrections)."}};
   for (auto& c : corr) {
     ComponentSpec s;
     s.name = c[0];
@@ -426,14 +699,19 @@ void registerConstraintContact(Registry& r) {
     s.category = "collision";
     s.doc = c[1];
     s.add(AttrSpec::string("solverName").def("").help("accepted for SOFA scenes; the node's solver is used"));
-    s.add(AttrSpec::string("compliance").def("").help("accepted for SOFA scenes; the compliance comes from the mass"));
+    s.add(AttrSpec::reals("compliance").help(
+        "rigid body: 1/m and the upper inverse inertia (xx xy xz yy yz zz) in place of the mass's; deformable body: "
+        "accepted for SOFA scenes, the compliance comes from the mass and the step matrix"));
     s.add(AttrSpec::boolean("wire_optimization").def("false").help("accepted for SOFA scenes"));
     s.add(AttrSpec::link("linearSolver").help("accepted for SOFA scenes; the node's solver is used"));
-    s.add(AttrSpec::real("defaultCompliance").atLeast(0).help("rigid bodies only (whose contact is not handled): accepted for SOFA scenes"));
-    s.add(AttrSpec::boolean("useOdeSolverIntegrationFactors").def("true").help("rigid bodies only (whose contact is not handled): accepted for SOFA scenes"));
+    s.add(AttrSpec::real("defaultCompliance").atLeast(0).help(
+        "rigid bodies only: 1/m in place of the mass's, with unit rotational compliance (as SOFA)"));
+    s.add(AttrSpec::boolean("useOdeSolverIntegrationFactors").def("true").help(
+        "rigid bodies only, accepted for SOFA scenes: the compliance always follows the solver's step (a force over "
+        "the step moves the body by h^2 / (1 + h rayleighMass) M^-1 F)"));
     s.add(AttrSpec::link("mstate").help("the body (default: the one in the node)"));
     s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
-      if (ctx.node().find<RigidObject>() && !ctx.node().find<MechanicalObject>()) return std::make_unique<RigidBodyCorrection>(ctx);
+      if (ctx.node().find<RigidObject>() && !ctx.node().find<MechanicalObject>()) return std::make_unique<RigidConstraintCorrection>(ctx);
       return std::make_unique<ConstraintCorrection>(ctx);
     };
     r.add(std::move(s));

@@ -11,79 +11,144 @@
 
 namespace viscera {
 
+namespace {
+
+// The rigid bodies in the subtree of `n` that no solver below it moves, in scene order; bodies of
+// Vec3d nodes with a mass are collected in `deformable`.
+void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable) {
+  for (const auto& child : n.children()) {
+    Node& c = *child;
+    if (!c.active() || c.find<OdeSolver>()) continue;  // inactive, or moved by its own solver
+    if (RigidObject* b = c.find<RigidObject>(); b && !c.find<MechanicalObject>()) {
+      rigid.push_back(b);
+      continue;  // below a rigid body: its mapped points and visuals
+    }
+    if (MechanicalObject* m = c.find<MechanicalObject>(); m && c.find<Mass>()) deformable.push_back(m);
+    collectBodies(c, rigid, deformable);
+  }
+}
+
+}  // namespace
+
 std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& solver) {
   Node& node = solver.node();
-  RigidObject* body = node.find<RigidObject>();
-  if (!body || node.find<MechanicalObject>()) return nullptr;
+  if (node.find<MechanicalObject>()) return nullptr;
+  std::vector<RigidObject*> found;
+  if (RigidObject* body = node.find<RigidObject>()) {
+    found.push_back(body);
+  } else {
+    std::vector<MechanicalObject*> deformable;
+    collectBodies(node, found, deformable);
+    if (found.empty()) return nullptr;
+    if (!deformable.empty())
+      throw solver.error("moves the rigid bodies below its node, but MechanicalObject '" + deformable.front()->name() +
+                         "' (" + deformable.front()->node().path() + ") has a mass and no solver of its own: a "
+                         "deformable body needs the solver in its node");
+  }
+  auto r = std::unique_ptr<RigidBodyIntegrator>(new RigidBodyIntegrator);
+  r->gravity_ = solver.scene().gravity();
+  for (RigidObject* body : found) r->bodies_.push_back(prepare(solver, *body));
+  return r;
+}
+
+RigidBodyIntegrator::Body RigidBodyIntegrator::prepare(Component& solver, RigidObject& body) {
+  Node& node = body.node();
   Scene& scene = solver.scene();
-  scene.initComponent(*body);
+  scene.initComponent(body);
   // Drivers and masses mark the body when they initialise: settle them before deciding.
   for (Driver* d : scene.all<Driver>()) scene.initComponent(dynamic_cast<Component&>(*d));
   for (const auto& c : node.components())
     if (c.get() != &solver) scene.initComponent(*c);
-  auto r = std::unique_ptr<RigidBodyIntegrator>(new RigidBodyIntegrator);
-  r->body_ = body;
-  r->gravity_ = scene.gravity();
+  Body r;
+  r.body = &body;
   for (RigidMapping* m : scene.all<RigidMapping>()) {
     scene.initComponent(*m);
-    if (&m->body() == body) r->mappings_.push_back(m);
+    if (&m->body() == &body) r.mappings.push_back(m);
   }
   for (RigidForce* f : scene.all<RigidForce>()) {
     scene.initComponent(dynamic_cast<Component&>(*f));
-    if (&f->body() == body) r->forces_.push_back(f);
+    if (&f->body() == &body) r.forces.push_back(f);
   }
-  const std::string who = solver.loc().str() + ": note: " + solver.typeName() + " '" + solver.name() + "' is in the node of rigid body '" + body->name() + "'";
-  if (body->driven) {
-    scene.addNote(who + ", which is driven, not integrated: the solver stays idle");
-  } else if (!(body->mass > 0)) {
+  const std::string who = solver.loc().str() + ": note: " + solver.typeName() + " '" + solver.name() + "' moves rigid body '" + body.name() + "'";
+  if (body.driven) {
+    scene.addNote(who + ", which is driven, not integrated: the solver stays idle for it");
+  } else if (!(body.mass > 0)) {
     scene.addNote(who + ", which has no mass (UniformMass): the body is held where it starts");
   } else {
-    r->idle_ = false;
+    r.idle = false;
     return r;
   }
-  if (body->prescribedVelocity)
-    throw solver.error("rigid body '" + body->name() + "' has a prescribed velocity (LinearVelocityProjectiveConstraint) "
-                       "but is " + (body->driven ? "driven" : "not integrated (no mass)") + ": the velocity would be ignored");
+  if (body.prescribedVelocity)
+    throw solver.error("rigid body '" + body.name() + "' has a prescribed velocity (LinearVelocityProjectiveConstraint) "
+                       "but is " + (body.driven ? "driven" : "not integrated (no mass)") + ": the velocity would be ignored");
   // A held or driven body does not move under forces: refuse forces that would be ignored.
-  if (!r->forces_.empty())
-    throw dynamic_cast<const Component&>(*r->forces_.front())
-        .error("acts on rigid body '" + body->name() + "', which is " + (body->driven ? "driven" : "held (no mass)") +
+  if (!r.forces.empty())
+    throw dynamic_cast<const Component&>(*r.forces.front())
+        .error("acts on rigid body '" + body.name() + "', which is " + (body.driven ? "driven" : "held (no mass)") +
                ": the force would be ignored");
-  for (const RigidMapping* m : r->mappings_)
+  for (const RigidMapping* m : r.mappings)
     if (!m->outputForces().empty())
       throw dynamic_cast<const Component&>(*m->outputForces().front())
-          .error("acts on a state mapped from rigid body '" + body->name() + "', which is " +
-                 (body->driven ? "driven" : "held (no mass)") + ": the force would be ignored");
+          .error("acts on a state mapped from rigid body '" + body.name() + "', which is " +
+                 (body.driven ? "driven" : "held (no mass)") + ": the force would be ignored");
   return r;
 }
 
-void RigidBodyIntegrator::wrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const {
-  force = body_->mass * gravity_;
+bool RigidBodyIntegrator::idle() const {
+  for (const Body& b : bodies_)
+    if (!b.idle) return false;
+  return true;
+}
+
+std::vector<RigidObject*> RigidBodyIntegrator::bodies() const {
+  std::vector<RigidObject*> r;
+  for (const Body& b : bodies_) r.push_back(b.body);
+  return r;
+}
+
+const RigidBodyIntegrator::Body* RigidBodyIntegrator::find(const RigidObject& body) const {
+  for (const Body& b : bodies_)
+    if (b.body == &body) return &b;
+  return nullptr;
+}
+
+void RigidBodyIntegrator::wrench(State& s, const RigidObject& body, Eigen::Vector3d& force, Eigen::Vector3d& torque) const {
+  force = body.mass * gravity_;
   torque.setZero();
-  for (const RigidMapping* m : mappings_) m->addWrench(s, force, torque);
-  for (const RigidForce* f : forces_) f->addWrench(s, force, torque);
+  if (const Body* b = find(body)) {
+    for (const RigidMapping* m : b->mappings) m->addWrench(s, force, torque);
+    for (const RigidForce* f : b->forces) f->addWrench(s, force, torque);
+  }
 }
 
 std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, int stepIndex, double rM) const {
-  if (idle_) return std::nullopt;
+  for (const Body& b : bodies_)
+    if (auto bad = step(b, s, t, h, stepIndex, rM)) return bad;
+  return std::nullopt;
+}
+
+std::optional<Diverged> RigidBodyIntegrator::step(const Body& body, State& s, double t, double h, int stepIndex,
+                                                  double rM) const {
+  if (body.idle) return std::nullopt;
+  const RigidObject* rb = body.body;
   Eigen::Vector3d F, T;
-  wrench(s, F, T);
-  RigidObject::Live& b = body_->live(s);
+  wrench(s, *rb, F, T);
+  RigidObject::Live& b = rb->live(s);
   const RigidObject::Live before = b;
   const Eigen::Matrix3d R = b.q.toRotationMatrix();
-  const Eigen::Matrix3d I = R * body_->inertia * R.transpose();
-  const double m = body_->mass, damp = 1.0 + h * rM;
+  const Eigen::Matrix3d I = R * rb->inertia * R.transpose();
+  const double m = rb->mass, damp = 1.0 + h * rM;
   const Eigen::Vector3d Iw = I * b.w;
   Eigen::Vector3d v, w;
-  if (body_->prescribedVelocity && body_->prescribedVelocity(t, v, w)) {
+  if (rb->prescribedVelocity && rb->prescribedVelocity(t, v, w)) {
     b.v = v;
     b.w = w;
   } else {
     // [(1 + h rM) M - h^2 K] dV = h (F - rM M V + h K V), V = (v, w): the forces on the mapped
     // points (contacts above all) are implicit in the body's own motion.
     Eigen::Matrix<double, 6, 6> K = Eigen::Matrix<double, 6, 6>::Zero();
-    for (const RigidMapping* map : mappings_) map->addStiffness(s, K);
-    for (const RigidForce* f : forces_) f->addStiffness(s, K);
+    for (const RigidMapping* map : body.mappings) map->addStiffness(s, K);
+    for (const RigidForce* f : body.forces) f->addStiffness(s, K);
     Eigen::Matrix<double, 6, 6> M = Eigen::Matrix<double, 6, 6>::Zero();
     M.topLeftCorner<3, 3>() = m * Eigen::Matrix3d::Identity();
     M.bottomRightCorner<3, 3>() = I;
@@ -93,7 +158,7 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     rhs = h * (rhs - rM * M * V + h * K * V);
     Eigen::Matrix<double, 6, 6> A = damp * M - h * h * K;
     for (int k = 0; k < 6; ++k)
-      if (body_->held[k]) {
+      if (rb->held[k]) {
         A.row(k).setZero();
         A.col(k).setZero();
         A(k, k) = 1;
@@ -104,8 +169,8 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     b.w += dV.tail<3>();
   }
   for (int k = 0; k < 3; ++k) {
-    if (body_->held[k]) b.v[k] = 0;
-    if (body_->held[3 + k]) b.w[k] = 0;
+    if (rb->held[k]) b.v[k] = 0;
+    if (rb->held[3 + k]) b.w[k] = 0;
   }
   b.p += h * b.v;
   const double angle = h * b.w.norm();
@@ -116,12 +181,12 @@ std::optional<Diverged> RigidBodyIntegrator::step(State& s, double t, double h, 
     d.step = stepIndex;
     d.time = t + h;
     d.reason = "the rigid body's motion is not finite";
-    d.object = body_->name();
+    d.object = rb->name();
     return d;
   }
   // The points on the body where it now is: a body whose contacts follow this one's (solved
   // later in the step) reads this body's surface at the end of its step.
-  for (const RigidMapping* map : mappings_) map->apply(s);
+  for (const RigidMapping* map : body.mappings) map->apply(s);
   return std::nullopt;
 }
 

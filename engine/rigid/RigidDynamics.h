@@ -45,25 +45,35 @@ std::unique_ptr<Component> makeRigidRestShapeSprings(BuildContext& c);
 
 class RigidBodyIntegrator {
  public:
-  // The integrator of the rigid body in `solver`'s node, when that node holds a rigid body and no
-  // Vec3d one. Null when the node holds no rigid body; when the body is driven or has no mass the
-  // integrator holds it still (idle(), with a note).
+  // The integrator of the rigid bodies `solver` moves: the one in its node, when that node holds a
+  // rigid body and no Vec3d one; or, when its node holds neither (SOFA's solver above several
+  // bodies), every rigid body in its subtree that no solver further down moves. Null when there is
+  // none; a driven or massless body is held still (with a note). A body with a mass on Vec3d nodes
+  // in such a subtree is refused (its solver belongs in its node); one without a mass is an obstacle.
   static std::unique_ptr<RigidBodyIntegrator> forSolver(Component& solver);
 
-  bool idle() const { return idle_; }
-  RigidObject& body() const { return *body_; }
-  // Force and torque (about the body's origin) at state s: gravity, the mapped states' forces and
-  // the forces on the frame.
-  void wrench(State& s, Eigen::Vector3d& force, Eigen::Vector3d& torque) const;
-  // One step of size h with Rayleigh mass damping rM; a non-finite result is refused.
+  // True when no body moves (all driven or massless).
+  bool idle() const;
+  // The bodies, in scene order.
+  std::vector<RigidObject*> bodies() const;
+  // Force and torque on `body` (about its origin) at state s: gravity, the mapped states' forces
+  // and the forces on the frame.
+  void wrench(State& s, const RigidObject& body, Eigen::Vector3d& force, Eigen::Vector3d& torque) const;
+  // One step of size h with Rayleigh mass damping rM for every body; a non-finite result is refused.
   std::optional<Diverged> step(State& s, double t, double h, int stepIndex, double rayleighMass) const;
 
  private:
-  RigidObject* body_ = nullptr;
-  bool idle_ = true;
+  struct Body {
+    RigidObject* body = nullptr;
+    bool idle = true;
+    std::vector<const RigidMapping*> mappings;
+    std::vector<const RigidForce*> forces;
+  };
+  static Body prepare(Component& solver, RigidObject& body);
+  const Body* find(const RigidObject& b) const;
+  std::optional<Diverged> step(const Body& body, State& s, double t, double h, int stepIndex, double rM) const;
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
-  std::vector<const RigidMapping*> mappings_;
-  std::vector<const RigidForce*> forces_;
+  std::vector<Body> bodies_;
 };
 
 }  // namespace viscera

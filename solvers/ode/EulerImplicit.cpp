@@ -129,7 +129,8 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F (first order:
   // A v = F, so h A^-1 F and A^-1 F).
   std::optional<StepResponse> stepResponse(double h) const override {
-    if (rigid_) return std::nullopt;
+    // Rigid bodies: (1 + h rM) M dV = h F, p += h v (no stiffness of their own).
+    if (rigid_) return StepResponse{1.0 + h * rM_, 0.0, h * h, h};
     const double a = tr_ * h;
     if (firstOrder_) return StepResponse{1.0, -a, h, 1.0};
     return StepResponse{1.0 + a * rM_, -a * (a + rK_), h * h, h};

@@ -143,7 +143,7 @@ class RungeKutta4Solver : public ExplicitSolver {
     ExplicitSolver::init();
     if (rigid_ && !rigid_->idle())
       throw error("does not integrate rigid bodies; use EulerImplicitSolver or EulerExplicitSolver in the node of '" +
-                  rigid_->body().name() + "'");
+                  rigid_->bodies().front()->name() + "'");
   }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {

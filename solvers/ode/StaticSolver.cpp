@@ -78,7 +78,7 @@ class StaticSolver : public Component, public OdeSolver, public Stateful {
     if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) {
       if (!rigid_->idle())
         throw error("does not solve rigid bodies; use EulerImplicitSolver or EulerExplicitSolver in the node of '" +
-                    rigid_->body().name() + "'");
+                    rigid_->bodies().front()->name() + "'");
       return;
     }
     sys_ = std::make_unique<MechanicalSystem>(*this);

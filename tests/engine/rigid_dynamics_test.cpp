@@ -1,7 +1,7 @@
 // Integrated rigid bodies (a Rigid3d MechanicalObject with a UniformMass and an ODE solver, no
-// driver) and RigidMapping, checked against closed forms: free fall, Rayleigh mass damping, a
-// pendulum's period, the mapped points' positions and velocities; held components, .rigid files
-// and the refusals.
+// driver) and RigidMapping, checked against closed forms: free fall (with the solver in the body's
+// node or above several bodies), Rayleigh mass damping, a pendulum's period, the mapped points'
+// positions and velocities; held components, .rigid files and the refusals.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -83,6 +83,45 @@ TEST(RigidDynamics, FreeFallIsSymplecticEulerExactly) {
     EXPECT_LT((tip.x(sim.state()).col(0) - (b.p + Vector3d(0, 0.5, 0))).norm(), 1e-12);
     EXPECT_LT((tip.v(sim.state()).col(0) - b.v).norm(), 1e-12);
   }
+}
+
+// SOFA's solver above several bodies: one EulerImplicitSolver in a parent node moves each rigid body
+// below it as its own solver would; a massless Vec3d node beside them stays where it is (an
+// obstacle), and a deformable body with a mass there is refused, named.
+TEST(RigidDynamics, ASolverAboveMovesEveryRigidBodyBelowIt) {
+  auto scene = build(R"(<Node name="root" dt="0.01" gravity="0 0 -9.81">
+  <Node name="bodies">
+    <EulerImplicitSolver/>
+    <CGLinearSolver iterations="10"/>
+    <Node name="a"><MechanicalObject name="A" template="Rigid3d" position="0 0 3 0 0 0 1"/><UniformMass totalMass="1"/></Node>
+    <Node name="group">
+      <Node name="b"><MechanicalObject name="B" template="Rigid3d" position="5 0 1 0 0 0 1"/><UniformMass totalMass="7"/></Node>
+    </Node>
+    <Node name="floor"><MechanicalObject name="floorState" position="0 0 0  1 0 0  0 1 0"/></Node>
+  </Node>
+</Node>)");
+  Simulation sim(*scene);
+  const int n = 40;
+  const double h = 0.01, g = -9.81;
+  for (int i = 0; i < n; ++i) ASSERT_FALSE(sim.step());
+  const auto bodies = scene->all<RigidObject>();
+  ASSERT_EQ(bodies.size(), 2u);
+  const double z0[2] = {3, 1};
+  for (int k = 0; k < 2; ++k) {
+    const RigidObject::Live& b = bodies[k]->live(sim.state());
+    EXPECT_NEAR(b.v.z(), n * h * g, 1e-12) << bodies[k]->name();
+    EXPECT_NEAR(b.p.z(), z0[k] + h * h * g * n * (n + 1) / 2.0, 1e-12) << bodies[k]->name();
+  }
+  EXPECT_EQ(state(*scene, "floorState").x(sim.state()).col(1), Vector3d(1, 0, 0));
+
+  const std::string why = errorOf(R"(<Node name="root" dt="0.01">
+  <Node name="bodies">
+    <EulerImplicitSolver/>
+    <Node name="a"><MechanicalObject template="Rigid3d" position="0 0 3 0 0 0 1"/><UniformMass totalMass="1"/></Node>
+    <Node name="soft"><MechanicalObject name="softState" position="0 0 0  1 0 0"/><UniformMass totalMass="1"/></Node>
+  </Node>
+</Node>)");
+  EXPECT_NE(why.find("'softState' (/root/bodies/soft) has a mass and no solver of its own"), std::string::npos) << why;
 }
 
 TEST(RigidDynamics, RayleighMassDampingFollowsTheLinearlyImplicitStep) {
