@@ -354,23 +354,44 @@ void minimise(Runner& runner, const std::vector<ParamSpec>& params, const Search
     flat = flat && !(b[j] > a[j]);
   }
   if (flat) return;
-  nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
-  opt.set_lower_bounds(std::vector<double>(d, 0.0));
-  opt.set_upper_bounds(std::vector<double>(d, 1.0));
-  opt.set_xtol_abs(tol);
-  opt.set_maxeval(o.maxEvaluations);
-  std::function<double(const std::vector<double>&)> f = at;
-  opt.set_min_objective(
-      [](const std::vector<double>& s, std::vector<double>&, void* data) {
-        return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(s);
-      },
-      &f);
-  double value = 0;
-  try {
-    opt.optimize(s0, value);
-  } catch (const nlopt::roundoff_limited&) {
-    // Converged as far as the metric's resolution allows: the evaluations are in the table.
-  } catch (const nlopt::forced_stop&) {
+  // BOBYQA, restarted from where it stopped while a run still improves: its trust region shrinks
+  // as it follows a curved valley (a stiffer material with a smaller Poisson's ratio fits nearly
+  // as well), and it can stop on the valley's floor far from the minimum. The evaluations of all
+  // runs share the one budget.
+  int left = o.maxEvaluations;
+  double last = objective(*best);
+  while (left > 2 * static_cast<int>(d) + 1) {
+    nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(d));
+    opt.set_lower_bounds(std::vector<double>(d, 0.0));
+    opt.set_upper_bounds(std::vector<double>(d, 1.0));
+    opt.set_xtol_abs(tol);
+    opt.set_maxeval(left);
+    int used = 0;
+    std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& s) {
+      ++used;
+      return at(s);
+    };
+    opt.set_min_objective(
+        [](const std::vector<double>& s, std::vector<double>&, void* data) {
+          return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(s);
+        },
+        &f);
+    std::vector<double> s = s0;
+    double value = last;
+    try {
+      opt.optimize(s, value);
+    } catch (const nlopt::roundoff_limited&) {
+      // Converged as far as the metric's resolution allows: the evaluations are in the table.
+    } catch (const nlopt::forced_stop&) {
+      return;
+    }
+    left -= used;
+    const CandidateResult* now = bestOf(runner.rows());
+    // Another run only where this one moved the best by more than the metric's own noise.
+    const double noise = std::isfinite(now->metricSe) ? now->metricSe : 0.0;
+    if (!(objective(*now) < last - noise)) return;
+    last = objective(*now);
+    for (size_t j = 0; j < d; ++j) s0[j] = std::clamp((toAxis(params[j], now->values[j]) - a[j]) / (b[j] - a[j]), 0.0, 1.0);
   }
 }
 

@@ -518,6 +518,27 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     return S;
   }
 
+  // Coulomb's sliding force for one contact whose slip is s(l) = W l + b: the force of norm lim that
+  // opposes its own slip, s = -a l / lim with a >= 0, i.e. l = -(W + beta I)^-1 b with |l| = lim
+  // (beta = a / lim). |l(beta)| falls from the sticking force's norm (> lim) as beta grows; Newton
+  // on 1 / |l| - 1 / lim, nearly linear in beta, finds it in a few steps. (Projecting the
+  // sticking force onto the cone instead would oppose the force to W^-1 s, which is not Coulomb's
+  // law where W is anisotropic, as at a contact off a rigid body's centre.)
+  static Eigen::Vector2d slidingForce(const Eigen::Matrix2d& W, const Eigen::Vector2d& b, double lim) {
+    if (!(lim > 0)) return Eigen::Vector2d::Zero();
+    double beta = 0;
+    Eigen::Vector2d l = Eigen::Vector2d::Zero();
+    for (int k = 0; k < 50; ++k) {
+      const Eigen::Matrix2d Ab = W + beta * Eigen::Matrix2d::Identity();
+      l = -Ab.inverse() * b;
+      const double n = l.norm();
+      if (std::abs(n - lim) <= 1e-12 * lim) break;
+      const Eigen::Vector2d q = Ab.inverse() * l;  // d l / d beta = -q
+      beta = std::max(0.0, beta + (n - lim) / lim * n * n / std::max(l.dot(q), 1e-300));
+    }
+    return l * (lim / std::max(l.norm(), 1e-300));
+  }
+
   // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by more
   // than tolerance x the largest force.
   void gaussSeidel(Live& l, const Eigen::MatrixXd& W, const std::vector<Eigen::Vector3d>& dfree, double mu,
@@ -535,17 +556,13 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         // Normal: make the gap zero if that pushes, else release.
         li[0] = std::max(0.0, li[0] - d[0] / Wii(0, 0));
         d += Wii.col(0) * (li[0] - lambda[i][0]);
-        // Tangential: stick (zero slip) when that force is inside the cone |l_t| <= mu l_n; else
-        // slide, with a step along -slip projected onto the cone (SOFA's update), whose fixed point
-        // opposes the force to the slip itself. Projecting the sticking force instead would oppose
-        // it to W_tt^-1 slip, which for an anisotropic W_tt (a contact off a rigid body's centre)
-        // is not Coulomb's law.
+        // Tangential: stick (zero slip) when that force is inside the cone |l_t| <= mu l_n, else
+        // slide with the force on the cone opposing the slip (slidingForce).
+        const Eigen::Matrix2d Wtt = Wii.block<2, 2>(1, 1);
+        const Eigen::Vector2d b = d.tail<2>() - Wtt * li.tail<2>();  // slip = Wtt l_t + b
+        Eigen::Vector2d lt = -Wtt.ldlt().solve(b);
         const double lim = mu * li[0];
-        Eigen::Vector2d lt = li.tail<2>() - Wii.block<2, 2>(1, 1).ldlt().solve(d.tail<2>());
-        if (lt.norm() > lim) {
-          lt = li.tail<2>() - 2.0 * d.tail<2>() / (Wii(1, 1) + Wii(2, 2));
-          if (lt.norm() > lim) lt *= lim / std::max(lt.norm(), 1e-300);
-        }
+        if (lt.norm() > lim) lt = slidingForce(Wtt, b, lim);
         li.tail<2>() = lt;
         change = std::max(change, (li - lambda[i]).norm());
         scale = std::max(scale, li.norm());
