@@ -40,7 +40,7 @@ bench: build
 	$(BUILD_DIR)/tests/viscera_bench --benchmark_filter=-Accuracy --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 	bash scripts/bench-baseline.sh $(BUILD_DIR) $(BASELINE) 5
 
-# The learned models shipped in scenes/models/, made with the project's own commands (about 35 minutes).
+# The learned models shipped in scenes/models/, made with the project's own commands (about 70 minutes).
 models: build
 	bash scripts/make-models.sh $(BUILD_DIR)
 

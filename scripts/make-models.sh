@@ -5,7 +5,7 @@
 #   corrector_coarse  a 2D correction for the same phantom simulated 4x too stiff under gravity,
 #                     trained on measured clouds of a 5 kPa phantom (a virtual depth camera, 1 mm noise).
 # Usage: scripts/make-models.sh BUILD_DIR [WORK_DIR]. Each model is trained in WORK_DIR (default
-# BUILD_DIR/models-work, removed first) and then replaces the shipped folder. About 35 minutes on
+# BUILD_DIR/models-work, removed first) and then replaces the shipped folder. About 70 minutes on
 # two cores.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,11 +20,13 @@ camera=(--position "34.35 -150 330" --look-at "34.35 19.65 30" --rate 10 --sigma
 rm -rf "$work"
 mkdir -p "$work" scenes/models
 
-# The stepper: 48 palpations of 20 s (top and sides, depth 2-6 mm) to learn from; the network
-# predicts next offsets, with a cosine learning-rate schedule over 12 epochs.
+# The stepper: 96 palpations of 20 s (top and sides, depth 2-6 mm) to learn from, in two
+# recordings whose seeds are far enough apart that they share no rollout (rollout k uses seed + k);
+# the network predicts next offsets, with a cosine learning-rate schedule over 14 epochs.
 "$v" learn record "$scene" --out "$work/rollouts" --rollouts 48 --time 20 --seed 1
-"$v" learn train "$work/rollouts" --out "$work/stepper_coarse" --width 128 --instrument-all --noise 0.02 \
-  --output offset --schedule cosine --epochs 12 --warmup 1 --seed 1
+"$v" learn record "$scene" --out "$work/rollouts101" --rollouts 48 --time 20 --seed 101
+"$v" learn train "$work/rollouts" "$work/rollouts101" --out "$work/stepper_coarse" --width 128 --instrument-all \
+  --noise 0.02 --output offset --schedule cosine --epochs 14 --warmup 1 --seed 1
 
 # The corrector: a 90 s measured palpation of the top (5 kPa, gravity on), replayed by the scene
 # with a 4x too stiff phantom.

@@ -391,7 +391,8 @@ void minimise(Runner& runner, const std::vector<ParamSpec>& params, const Search
     const double noise = std::isfinite(now->metricSe) ? now->metricSe : 0.0;
     if (!(objective(*now) < last - noise)) return;
     last = objective(*now);
-    for (size_t j = 0; j < d; ++j) s0[j] = std::clamp((toAxis(params[j], now->values[j]) - a[j]) / (b[j] - a[j]), 0.0, 1.0);
+    for (size_t j = 0; j < d; ++j)
+      s0[j] = b[j] > a[j] ? std::clamp((toAxis(params[j], now->values[j]) - a[j]) / (b[j] - a[j]), 0.0, 1.0) : 0.5;
   }
 }
 

@@ -205,10 +205,9 @@ class RigidConstraintCorrection : public Component {
   void init() override {
     body_ = &contextRigid(*this, "mstate");
     scene().initComponent(*body_);
-    for (const Node* n = &body_->node(); n && !ode_; n = n->parent()) ode_ = n->find<OdeSolver>();
-    if (!ode_) throw error("rigid body '" + body_->name() + "' has no ODE solver in its node or above it");
     // The solver initialises the body's node, this component included: its step response is read
-    // when the constraint solver runs.
+    // when the constraint solver runs (none is needed for a body nothing moves).
+    for (const Node* n = &body_->node(); n && !ode_; n = n->parent()) ode_ = n->find<OdeSolver>();
     const std::vector<double> c = attrs_.reals("compliance");
     if (!c.empty()) {
       if (c.size() != 7) throw error("compliance", "a rigid body's compliance is 7 numbers: 1/m and the upper inverse inertia (xx xy xz yy yz zz)");
@@ -227,24 +226,34 @@ class RigidConstraintCorrection : public Component {
   }
   RigidObject& body() const { return *body_; }
 
-  // The 6x6 compliance over a step of size h at state s.
+  // Whether anything moves the body: it is integrated (a mass, not driven, no prescribed velocity).
+  bool moves() const { return !body_->driven && body_->mass > 0 && !body_->prescribedVelocity; }
+
+  // The 6x6 compliance over a step of size h at state s; held components take nothing.
   Eigen::Matrix<double, 6, 6> compliance(const State& s, double h) const {
-    const StepResponse r = response(h);
     Eigen::Matrix<double, 6, 6> C = Eigen::Matrix<double, 6, 6>::Zero();
+    if (!moves()) return C;
+    const StepResponse r = response(h);
     const double f = r.xFactor / r.mFactor;
     if (given_) {
       C.topLeftCorner<3, 3>() = f * linear_ * Eigen::Matrix3d::Identity();
       C.bottomRightCorner<3, 3>() = f * rotational_;
-    } else if (!body_->driven && body_->mass > 0) {  // else held or driven: nothing moves it
+    } else {
       C.topLeftCorner<3, 3>() = f / body_->mass * Eigen::Matrix3d::Identity();
       const Eigen::Matrix3d R = body_->live(s).q.toRotationMatrix();
       C.bottomRightCorner<3, 3>() = f * R * body_->inertia.inverse() * R.transpose();
     }
+    for (int k = 0; k < 6; ++k)
+      if (body_->held[k]) {
+        C.row(k).setZero();
+        C.col(k).setZero();
+      }
     return C;
   }
   // Moves the body by C W (W: force and torque about its origin) and its velocity to match; the
   // mapped points follow.
   void apply(State& s, const Eigen::Matrix<double, 6, 1>& wrench, double h) const {
+    if (!moves()) return;
     const StepResponse r = response(h);
     const Eigen::Matrix<double, 6, 1> d = compliance(s, h) * wrench;
     RigidObject::Live& b = body_->live(s);
@@ -259,11 +268,16 @@ class RigidConstraintCorrection : public Component {
       if (body_->held[3 + k]) turn[k] = 0;
     b.w += turn * (r.vFactor / r.xFactor);
     if (turn.norm() > 0) b.q = (Eigen::Quaterniond(Eigen::AngleAxisd(turn.norm(), turn.normalized())) * b.q).normalized();
+    remap(s);
+  }
+  // The points mapped from the body follow its pose in s.
+  void remap(State& s) const {
     for (const RigidMapping* m : mappings_) m->apply(s);
   }
 
  private:
   StepResponse response(double h) const {
+    if (!ode_) throw error("rigid body '" + body_->name() + "' has no ODE solver in its node or above it");
     const auto r = ode_->stepResponse(h);
     if (!r || !(r->xFactor > 0))
       throw error("the solver moving rigid body '" + body_->name() + "' gives no step response (use EulerImplicitSolver)");
@@ -345,8 +359,8 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   const RigidConstraintCorrection* rigidCorrection(const SurfaceCollisionModel& surf) const {
     const RigidObject& b = *surf.rigidBody();
     for (RigidConstraintCorrection* c : rigidCorrections_)
-      if (&c->body() == &b) return c;
-    if (b.driven || !(b.mass > 0)) return nullptr;
+      if (&c->body() == &b) return c->moves() ? c : nullptr;
+    if (b.driven || !(b.mass > 0) || b.prescribedVelocity) return nullptr;
     throw surf.error("constraint contact with rigid body '" + b.name() + "' needs UncoupledConstraintCorrection in its node");
   }
 
@@ -354,7 +368,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   // surface or a driven body), how the contact point follows it, and the sign of the force on it.
   struct Side {
     const SurfaceCollisionModel* surf = nullptr;
-    const Contact* c = nullptr;  // this side's own record of the contact (the pair's, or its mirror)
+    Contact* c = nullptr;  // this side's own record of the contact (the pair's, or its mirror)
     const ConstraintCorrection* deformable = nullptr;
     const RigidConstraintCorrection* rigid = nullptr;
     Eigen::Vector3d arm = Eigen::Vector3d::Zero();  // rigid: contact point - body origin
@@ -377,9 +391,9 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     for (int si = 0; si < static_cast<int>(surfaces.size()); ++si) {
       const SurfaceCollisionModel* a = surfaces[si];
       if (!a->active()) continue;
-      const auto& cs = a->contacts(st);
+      auto& cs = a->contacts(st);
       for (int ci = 0; ci < static_cast<int>(cs.size()); ++ci) {
-        const Contact& c = cs[ci];
+        Contact& c = cs[ci];
         if (!c.partner) continue;
         const int pi = indexOf(c.partner);
         if (std::make_pair(pi, c.mirror) < std::make_pair(si, ci)) continue;  // the pair is taken from its other side
@@ -459,7 +473,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     for (int i = 0; i < m; ++i) {
       const Eigen::Vector3d f = R[i].transpose() * lambda[i];
       for (const Side& sd : pairs[i]) {
-        Contact& rec = const_cast<Contact&>(*sd.c);
+        Contact& rec = *sd.c;
         rec.force = sd.sign * f;
         rec.active = lambda[i][0] > 0;
         if (sd.rigid) {
@@ -472,36 +486,58 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         }
       }
     }
+    // Every moving body once; all are put back if any comes out non-finite.
+    std::vector<std::pair<MechanicalObject::Live*, std::array<Eigen::Matrix3Xd, 2>>> keptDeformable;
+    std::vector<std::pair<const RigidConstraintCorrection*, RigidObject::Live>> keptRigid;
+    bool finite = true;
+    std::string failed;
     for (const auto& p : pairs)
       for (const Side& sd : p) {
         if (sd.rigid && wrenches.count(sd.key())) {
+          RigidObject::Live& b = sd.rigid->body().live(st);
+          keptRigid.emplace_back(sd.rigid, b);
           sd.rigid->apply(st, wrenches.at(sd.key()), h);
           wrenches.erase(sd.key());
+          if (!b.p.allFinite() || !b.v.allFinite() || !b.w.allFinite() || !b.q.coeffs().allFinite()) {
+            finite = false;
+            failed = sd.rigid->body().name();
+          }
         } else if (sd.deformable && nodeForces.count(sd.key())) {
           ConstraintCorrection::Live& cl = *deformableLive.at(sd.key());
           MechanicalObject::Live& s = sd.surf->mstate().live(st);
+          keptDeformable.push_back({&s, {s.x, s.v}});
           Eigen::Matrix3Xd dx;
           sd.deformable->apply(cl, nodeForces.at(sd.key()), dx);
           s.x += dx;
           if (cl.resp.vFactor != 0) s.v += dx * (cl.resp.vFactor / cl.resp.xFactor);
           nodeForces.erase(sd.key());
           if (!s.x.allFinite() || !s.v.allFinite()) {
-            Diverged d;
-            d.step = stepIndex;
-            d.time = time;
-            d.reason = "constraint solver produced non-finite forces";
-            d.object = sd.surf->mstate().name();
-            return d;
+            finite = false;
+            failed = sd.surf->mstate().name();
           }
         }
       }
-    return std::nullopt;
+    if (finite) return std::nullopt;
+    for (auto& [s, xv] : keptDeformable) {
+      s->x = xv[0];
+      s->v = xv[1];
+    }
+    for (auto& [c, b] : keptRigid) {
+      c->body().live(st) = b;
+      c->remap(st);
+    }
+    Diverged d;
+    d.step = stepIndex;
+    d.time = time;
+    d.reason = "constraint solver produced non-finite forces";
+    d.object = failed;
+    return d;
   }
 
   // The share of a step's relative tangential motion that friction acts on, from the gap at
-  // detection g0 and after the free motion g (SOFA's rule): a contact that closes during the step
-  // slips only after it touches, at the fraction tau = g0 / (g0 - g) of the step; one that opens
-  // does not slip under the contact.
+  // detection g0 and after the free motion g (SOFA's rule): a contact whose gap changes sign within
+  // the step slips only after that, from the fraction tau = g0 / (g0 - g) of the step; one that
+  // stays open resists none, one that stays closed all of it.
   static double slipShare(double g0, double g, double travel) {
     if (std::abs(g0) < 1e-5 * travel && std::abs(g) < 1e-5 * travel) return 1;
     if (std::abs(g0 - g) > 1e-3 * g0) {
@@ -526,7 +562,9 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   // law where W is anisotropic, as at a contact off a rigid body's centre.)
   static Eigen::Vector2d slidingForce(const Eigen::Matrix2d& W, const Eigen::Vector2d& b, double lim) {
     if (!(lim > 0)) return Eigen::Vector2d::Zero();
-    double beta = 0;
+    // A singular W (a node held along one tangent) starts just off zero, where W + beta I inverts.
+    const double tr = W.trace();
+    double beta = W.determinant() > 1e-12 * tr * tr ? 0.0 : 1e-9 * tr + 1e-300;
     Eigen::Vector2d l = Eigen::Vector2d::Zero();
     for (int k = 0; k < 50; ++k) {
       const Eigen::Matrix2d Ab = W + beta * Eigen::Matrix2d::Identity();
@@ -534,7 +572,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       const double n = l.norm();
       if (std::abs(n - lim) <= 1e-12 * lim) break;
       const Eigen::Vector2d q = Ab.inverse() * l;  // d l / d beta = -q
-      beta = std::max(0.0, beta + (n - lim) / lim * n * n / std::max(l.dot(q), 1e-300));
+      beta = std::max(beta, beta + (n - lim) / lim * n * n / std::max(l.dot(q), 1e-300));
     }
     return l * (lim / std::max(l.norm(), 1e-300));
   }

@@ -1,5 +1,5 @@
 // The motion of a rigid body that is integrated, not driven: a Rigid3d MechanicalObject with a
-// UniformMass and an ODE solver in its node, and no driver. Newton-Euler in the world frame:
+// UniformMass and an ODE solver in its node or above it, and no driver. Newton-Euler in the world frame:
 //   (1 + h rM) m dv = h (F - rM m v)
 //   (1 + h rM) I dw = h (T - w x I w - rM I w),   I = R I_body R^T,
 // the linearly implicit Euler step of SOFA's EulerImplicitSolver (symplectic Euler with rM = 0

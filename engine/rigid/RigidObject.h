@@ -1,7 +1,7 @@
 // A rigid body's state (SOFA's MechanicalObject template="Rigid3d"): one frame, position and
 // orientation, with its velocity. Instruments are driven: their motion is prescribed by a driver
 // (a trajectory, key frames, robot kinematics) and the contact wrench on them is recorded. A body
-// with a mass and an ODE solver in its node and no driver is integrated (RigidDynamics.h).
+// with a mass, an ODE solver in its node or above it and no driver is integrated (RigidDynamics.h).
 #pragma once
 
 #include <Eigen/Core>
