@@ -619,6 +619,8 @@ void CollisionResponse::init() {
   response = r == "FrictionContactConstraint" || r == "FrictionContact" || r == "UnilateralContactConstraint"
                  ? ContactSettings::Response::Constraint
                  : ContactSettings::Response::Penalty;
+  // SOFA's FrictionContact has mu = 0.8 unless told otherwise; its unilateral contact no friction.
+  if (response == ContactSettings::Response::Constraint && r != "UnilateralContactConstraint") mu = 0.8;
   // responseParams: "mu=0.9" (SOFA separates several with '&').
   const std::string& params = attrs_.str("responseParams");
   size_t pos = 0;
@@ -639,6 +641,8 @@ void CollisionResponse::init() {
     }
   }
   if (attrs_.isSet("mu")) mu = attrs_.real("mu");
+  if (r == "UnilateralContactConstraint" && mu > 0)
+    throw error("responseParams", "UnilateralContactConstraint has no friction; use FrictionContactConstraint for mu > 0");
   if (response == ContactSettings::Response::Penalty && mu > 0)
     throw error("responseParams", "friction (mu) needs the constraint response: response=\"FrictionContactConstraint\"");
 }

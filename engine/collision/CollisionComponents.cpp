@@ -128,7 +128,9 @@ void registerCollision(Registry& r) {
               .def("PenalityContactForceField")
               .help("the contact response"));
     s.add(AttrSpec::string("responseParams").def("").help("SOFA's parameters, e.g. \"mu=0.9\""));
-    s.add(AttrSpec::real("mu").atLeast(0).help("Coulomb friction coefficient (overrides responseParams)"));
+    s.add(AttrSpec::real("mu").atLeast(0).help(
+        "Coulomb friction coefficient (overrides responseParams); unless given, SOFA's: 0.8 for FrictionContactConstraint "
+        "and FrictionContact, none for UnilateralContactConstraint"));
     s.factory = [](BuildContext& c) { return std::make_unique<CollisionResponse>(c); };
     r.add(std::move(s));
   }

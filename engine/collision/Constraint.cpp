@@ -312,7 +312,11 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   void init() override {
     maxIt_ = static_cast<int>(attrs_.integer("maxIterations"));
     tol_ = attrs_.real("tolerance");
+    // SOFA's LCPConstraintSolver applies its own mu (0.6 unless given) to every contact that has
+    // friction at all (a response mu above 0); GenericConstraintSolver's given mu replaces the response's.
+    lcp_ = typeName() == "LCPConstraintSolver";
     if (attrs_.isSet("mu")) muOverride_ = attrs_.real("mu");
+    else if (lcp_) muOverride_ = 0.6;
     if (!hasAnimationLoop())
       throw error("needs FreeMotionAnimationLoop in the root node (constraint contact runs after the free motion)");
     for (ConstraintCorrection* c : scene().all<ConstraintCorrection>()) {
@@ -331,7 +335,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     l.iterations = 0;
     l.residual = 0;
     if (pipe.settings().response != ContactSettings::Response::Constraint) return std::nullopt;
-    const double mu = muOverride_ >= 0 ? muOverride_ : pipe.settings().mu;
+    const double mu = muOverride_ < 0 ? pipe.settings().mu : lcp_ && !(pipe.settings().mu > 0) ? 0.0 : muOverride_;
     for (const SurfaceCollisionModel* surf : pipe.surfaces()) {
       if (!surf->active() || surf->rigidBody() || surf->isStatic()) continue;
       const auto& cs = surf->contacts(st);
@@ -680,6 +684,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   int maxIt_ = 1000;
   double tol_ = 1e-8;
   double muOverride_ = -1;
+  bool lcp_ = false;
   std::vector<ConstraintCorrection*> corrections_;
   std::vector<RigidConstraintCorrection*> rigidCorrections_;
 };
@@ -720,7 +725,9 @@ void registerConstraintContact(Registry& r) {
             "more than tolerance x the largest force, or after maxIterations.";
     s.add(AttrSpec::integer("maxIterations").alias("maxIt").def("1000").atLeast(1).help("Gauss-Seidel sweeps at most"));
     s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help("relative change of the contact forces to stop at"));
-    s.add(AttrSpec::real("mu").atLeast(0).help("friction coefficient (overrides the CollisionResponse's)"));
+    s.add(AttrSpec::real("mu").atLeast(0).help(
+        "friction coefficient: GenericConstraintSolver, when given, in place of the CollisionResponse's; "
+        "LCPConstraintSolver (as SOFA's), for every contact whose response has friction (0.6 unless given)"));
     s.add(AttrSpec::boolean("build_lcp").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("initial_guess").def("true").help(
         "accepted for SOFA scenes (a warm start from the last step's forces): the iteration starts from zero forces, "

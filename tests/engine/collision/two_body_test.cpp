@@ -13,6 +13,7 @@
 #include "builtin/Builtins.h"
 #include "core/Scene.h"
 #include "engine/Simulation.h"
+#include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -148,6 +149,27 @@ TEST(TwoBodyContact, FrictionHoldsBelowTheFrictionAngleAndSlidesAtTheCoulombRate
     EXPECT_NEAR(b.p.z(), 0.51, 1e-9) << degrees << " degrees";
     EXPECT_LT(b.w.norm(), 1e-7) << degrees << " degrees";
   }
+}
+
+// SOFA's friction defaults: FrictionContact has mu = 0.8 unless told otherwise, the unilateral
+// contact none (and refuses one).
+TEST(TwoBodyContact, TheConstraintResponsesFrictionDefaultsAreSofas) {
+  auto muOf = [](const std::string& response) {
+    auto scene = buildScene(io::parseSceneText(
+        world(response, "<FreeMotionAnimationLoop/><GenericConstraintSolver/>" + rigidCube()), "two_body.xml"));
+    scene->init();
+    return scene->all<CollisionPipeline>().front()->settings().mu;
+  };
+  EXPECT_EQ(muOf("FrictionContactConstraint"), 0.8);
+  EXPECT_EQ(muOf("FrictionContactConstraint\" responseParams=\"mu=0.25"), 0.25);
+  EXPECT_EQ(muOf("UnilateralContactConstraint"), 0.0);
+  std::string why;
+  try {
+    muOf("UnilateralContactConstraint\" responseParams=\"mu=0.3");
+  } catch (const Error& e) {
+    why = e.what();
+  }
+  EXPECT_NE(why.find("CollisionResponse.responseParams: UnilateralContactConstraint has no friction"), std::string::npos) << why;
 }
 
 // An instrument with a sphere and a surface of its own (SOFA's instrument node with a collision
