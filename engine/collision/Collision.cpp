@@ -342,6 +342,89 @@ void SurfaceCollisionModel::detectVertices(const State& st, const SurfaceCollisi
   }
 }
 
+void SurfaceCollisionModel::addVertex(Contact& c, int v, double w) const {
+  if (vertexMap_.empty()) {
+    c.nodes[c.count] = v;
+    c.w[c.count] = w;
+    ++c.count;
+    return;
+  }
+  for (auto [node, bw] : vertexMap_[v]) {
+    c.nodes[c.count] = node;
+    c.w[c.count] = w * bw;
+    ++c.count;
+  }
+}
+
+Eigen::Vector3d SurfaceCollisionModel::edgeNormal(int e, const Eigen::Matrix3Xd& x) const {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (int t : edgeTris_[e]) {
+    const auto& tri = tris_[t];
+    n += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
+  }
+  return n;
+}
+
+void SurfaceCollisionModel::detectEdges(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s,
+                                        std::vector<Contact>& here, std::vector<Contact>& there) const {
+  if (kind_ == Kind::Points || other.kind_ == Kind::Points) return;
+  const Eigen::Matrix3Xd& x = surfacePositions(st);
+  const Eigen::Matrix3Xd& y = other.surfacePositions(st);
+  const Bvh& bvh = *stateIn<Live>(st).bvh;
+  const double k = stiffness_ * other.stiffness_ / std::max(s.contactDistance, 1e-12 * std::max(meanEdge_, 1.0));
+  const double interior = 1e-6;  // closest points strictly inside both edges (else a vertex contact)
+  for (int eb = 0; eb < static_cast<int>(other.edges_.size()); ++eb) {
+    const Eigen::Vector3d b0 = y.col(other.edges_[eb][0]), b1 = y.col(other.edges_[eb][1]);
+    geom::AabbTree::Box box(b0.cwiseMin(b1), b0.cwiseMax(b1));
+    box.extend(box.min() - Eigen::Vector3d::Constant(s.alarmDistance));
+    box.extend(box.max() + Eigen::Vector3d::Constant(s.alarmDistance));
+    std::set<int> seen;
+    bvh.tree.query(box, [&](int t) {
+      for (int ea : triEdges_[t]) {
+        if (!seen.insert(ea).second) continue;
+        const Eigen::Vector3d a0 = x.col(edges_[ea][0]), a1 = x.col(edges_[ea][1]);
+        const Eigen::Vector3d u = a1 - a0, v = b1 - b0, w0 = a0 - b0;
+        const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uw = u.dot(w0), vw = v.dot(w0);
+        const double det = uu * vv - uv * uv;
+        if (!(det > 1e-12 * uu * vv)) continue;  // parallel: their ends' vertex contacts hold them
+        const double sa = (uv * vw - vv * uw) / det, sb = (uu * vw - uv * uw) / det;
+        if (sa < interior || sa > 1 - interior || sb < interior || sb > 1 - interior) continue;
+        const Eigen::Vector3d p = a0 + sa * u, q = b0 + sb * v, pq = q - p;
+        const double dist = pq.norm();
+        if (dist >= s.alarmDistance || !(dist > 1e-12 * std::sqrt(uu))) continue;
+        // Each edge sees the other outside its own body (not past the faces at the edge).
+        if (!(edgeNormal(ea, x).dot(pq) > 0) || !(other.edgeNormal(eb, y).dot(-pq) > 0)) continue;
+        Contact c;
+        c.surface = this;
+        c.feature = Feature::Edge;
+        addVertex(c, edges_[ea][0], 1 - sa);
+        addVertex(c, edges_[ea][1], sa);
+        c.n = pq / dist;
+        c.p0 = p;
+        c.gap0 = dist - s.contactDistance;
+        c.partner = &other;
+        c.mirror = static_cast<int>(there.size());
+        c.k = k;
+        c.active = c.gap0 < 0;
+        Contact m;
+        m.surface = &other;
+        m.feature = Feature::Edge;
+        other.addVertex(m, other.edges_[eb][0], 1 - sb);
+        other.addVertex(m, other.edges_[eb][1], sb);
+        m.n = -c.n;
+        m.p0 = m.point(other.state_->x(st));
+        m.gap0 = c.gap0;
+        m.partner = this;
+        m.mirror = static_cast<int>(here.size());
+        m.k = k;
+        m.active = c.active;
+        here.push_back(c);
+        there.push_back(m);
+      }
+    });
+  }
+}
+
 void SurfaceCollisionModel::detectAt(const State& st, const Eigen::Vector3d& c, double R, double depth,
                                      const Eigen::Matrix3Xd& x, const ContactSettings& s, std::vector<Contact>& out) const {
   const Bvh& bvh = *stateIn<Live>(st).bvh;
@@ -679,6 +762,7 @@ void CollisionPipeline::init() {
     if (!fresh && s->kind() > it->second->kind()) it->second = s;
   }
   for (SurfaceCollisionModel* s : surfaces_) {
+    if (s->kind() == SurfaceCollisionModel::Kind::Lines) lines_.insert(&s->surfaceState());
     SurfaceCollisionModel* b = best[&s->surfaceState()];
     s->setActive(s == b);
     if (s != b)
@@ -784,6 +868,8 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
       pair.contactDistance += a->ownContactDistance() + b->ownContactDistance();
       pair.alarmDistance += a->ownContactDistance() + b->ownContactDistance();
       a->detectVertices(s, *b, pair, found[i], found[j]);
+      if (i < j && lines_.count(&a->surfaceState()) && lines_.count(&b->surfaceState()))
+        a->detectEdges(s, *b, pair, found[i], found[j]);
     }
   for (size_t i = 0; i < surfaces_.size(); ++i)
     if (surfaces_[i]->active()) surfaces_[i]->setContacts(s, std::move(found[i]), own[i]);

@@ -11,9 +11,9 @@
 //    system (the surface model is a ForceField of the tissue);
 //  - constraint: non-penetration with Coulomb friction, solved after the free motion by the
 //    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
-// Two bodies: each vertex of one surface is a point of radius 0 against the other's features; the
-// contact on the feature and its mirror on the vertex (opposite normal, same gap) are the pair's two
-// sides. Penalty: SOFA's stiffness k1 k2 / contactDistance, each side acting on its own body,
+// Two bodies: each vertex of one surface is a point of radius 0 against the other's features, and
+// (both with line models) crossing edges meet edge to edge; the contact on the feature and its
+// mirror on the vertex or edge (opposite normal, same gap) are the pair's two sides. Penalty: SOFA's stiffness k1 k2 / contactDistance, each side acting on its own body,
 // implicitly in that body's solve, with the other body where it stands (solvers run in turn, as
 // SOFA's: momentum is not exchanged exactly between two free bodies); a rigid body's side reaches it
 // as a wrench (RigidMapping). Constraint: one non-penetration and friction row block per pair,
@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "engine/Roles.h"
@@ -180,6 +181,13 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // its mirror on the vertex, pushing the two apart. Both surfaces fitted to the step start.
   void detectVertices(const State& s, const SurfaceCollisionModel& other, const ContactSettings& settings,
                       std::vector<Contact>& here, std::vector<Contact>& there) const;
+  // Contacts between the edges of this surface and those of `other` (SOFA's line-line proximities,
+  // made where both bodies have a LineCollisionModel): a pair of edges whose closest points lie
+  // inside both, within the alarm distance, each outside the other body (beyond the faces at its
+  // edge), makes a contact on this edge and its mirror on the other. Catches an edge crossing a
+  // thin part of another body between its vertices, which vertex contacts miss.
+  void detectEdges(const State& s, const SurfaceCollisionModel& other, const ContactSettings& settings,
+                   std::vector<Contact>& here, std::vector<Contact>& there) const;
   // The contacts of the current step, with the response they get.
   void setContacts(State& s, std::vector<Contact> c, const ContactSettings& settings) const;
   std::vector<Contact>& contacts(State& s) const { return stateIn<Live>(s).contacts; }
@@ -201,6 +209,10 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // point is a local minimum of the distance, within the alarm distance, down to `depth` inside.
   void detectAt(const State& st, const Eigen::Vector3d& c, double R, double depth, const Eigen::Matrix3Xd& x,
                 const ContactSettings& s, std::vector<Contact>& out) const;
+  // Appends surface vertex v with weight w to contact c (on a mapped surface: the body's nodes it follows).
+  void addVertex(Contact& c, int v, double w) const;
+  // The sum of the outward normals of the faces at edge e, at positions x.
+  Eigen::Vector3d edgeNormal(int e, const Eigen::Matrix3Xd& x) const;
   // Where the surface comes from: the `topology` link, else the nearest node's topology.
   Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
@@ -281,6 +293,7 @@ class CollisionPipeline : public Component, public Stateful {
   ContactSettings settings_;
   std::vector<SphereCollisionModel*> spheres_;
   std::vector<SurfaceCollisionModel*> surfaces_;
+  std::set<const MechanicalObject*> lines_;  // surfaces with a LineCollisionModel (edge-edge contacts)
   std::vector<NodeSphereCollisionModel*> nodeSpheres_;  // alone in the scene: they may not touch
 };
 
