@@ -373,20 +373,23 @@ void SurfaceCollisionModel::detectEdges(const State& st, const SurfaceCollisionM
   const Bvh& bvh = *stateIn<Live>(st).bvh;
   const double k = stiffness_ * other.stiffness_ / std::max(s.contactDistance, 1e-12 * std::max(meanEdge_, 1.0));
   const double interior = 1e-6;  // closest points strictly inside both edges (else a vertex contact)
+  std::vector<int> tested(edges_.size(), -1);  // the last edge of `other` each edge here was tested against
   for (int eb = 0; eb < static_cast<int>(other.edges_.size()); ++eb) {
     const Eigen::Vector3d b0 = y.col(other.edges_[eb][0]), b1 = y.col(other.edges_[eb][1]);
     geom::AabbTree::Box box(b0.cwiseMin(b1), b0.cwiseMax(b1));
     box.extend(box.min() - Eigen::Vector3d::Constant(s.alarmDistance));
     box.extend(box.max() + Eigen::Vector3d::Constant(s.alarmDistance));
-    std::set<int> seen;
     bvh.tree.query(box, [&](int t) {
       for (int ea : triEdges_[t]) {
-        if (!seen.insert(ea).second) continue;
+        if (tested[ea] == eb) continue;
+        tested[ea] = eb;
         const Eigen::Vector3d a0 = x.col(edges_[ea][0]), a1 = x.col(edges_[ea][1]);
         const Eigen::Vector3d u = a1 - a0, v = b1 - b0, w0 = a0 - b0;
         const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uw = u.dot(w0), vw = v.dot(w0);
         const double det = uu * vv - uv * uv;
-        if (!(det > 1e-12 * uu * vv)) continue;  // parallel: their ends' vertex contacts hold them
+        // Nearly parallel (within a milliradian): the closest points slide along the edges with
+        // rounding, and the ends' vertex contacts hold such edges.
+        if (!(det > 1e-6 * uu * vv)) continue;
         const double sa = (uv * vw - vv * uw) / det, sb = (uu * vw - uv * uw) / det;
         if (sa < interior || sa > 1 - interior || sb < interior || sb > 1 - interior) continue;
         const Eigen::Vector3d p = a0 + sa * u, q = b0 + sb * v, pq = q - p;
