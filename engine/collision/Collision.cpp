@@ -319,17 +319,7 @@ void SurfaceCollisionModel::detectVertices(const State& st, const SurfaceCollisi
       m.mirror = static_cast<int>(i);
       m.surface = &other;
       m.feature = Feature::Vertex;
-      if (other.vertexMap_.empty()) {
-        m.nodes[0] = v;
-        m.w[0] = 1.0;
-        m.count = 1;
-      } else {
-        for (auto [node, w] : other.vertexMap_[v]) {
-          m.nodes[m.count] = node;
-          m.w[m.count] = w;
-          ++m.count;
-        }
-      }
+      other.addVertex(m, v, 1.0);
       m.n = -c.n;
       // The vertex's own point at detection: its nodes' weighted sum (the vertex itself, or the
       // body nodes a mapped vertex follows).
@@ -439,19 +429,7 @@ void SurfaceCollisionModel::detectAt(const State& st, const Eigen::Vector3d& c, 
     Contact ct;
     ct.surface = this;
     ct.feature = f;
-    for (auto [node, w] : nw) {
-      if (vertexMap_.empty()) {
-        ct.nodes[ct.count] = node;
-        ct.w[ct.count] = w;
-        ++ct.count;
-        continue;
-      }
-      for (auto [bodyNode, bw] : vertexMap_[node]) {  // a mapped vertex: the body's nodes it follows
-        ct.nodes[ct.count] = bodyNode;
-        ct.w[ct.count] = w * bw;
-        ++ct.count;
-      }
-    }
+    for (auto [node, w] : nw) addVertex(ct, node, w);
     ct.n = nrm;
     ct.p0 = q;
     ct.gap0 = dist - R - s.contactDistance;
