@@ -250,12 +250,12 @@ class RigidConstraintCorrection : public Component {
       }
     return C;
   }
-  // Moves the body by C W (W: force and torque about its origin) and its velocity to match; the
-  // mapped points follow.
-  void apply(State& s, const Eigen::Matrix<double, 6, 1>& wrench, double h) const {
+  // Moves the body by C W (C: its compliance for this step, from compliance(); W: force and torque
+  // about its origin) and its velocity to match; the mapped points follow.
+  void apply(State& s, const Eigen::Matrix<double, 6, 6>& C, const Eigen::Matrix<double, 6, 1>& wrench, double h) const {
     if (!moves()) return;
     const StepResponse r = response(h);
-    const Eigen::Matrix<double, 6, 1> d = compliance(s, h) * wrench;
+    const Eigen::Matrix<double, 6, 1> d = C * wrench;
     RigidObject::Live& b = body_->live(s);
     for (int k = 0; k < 3; ++k) {
       if (!body_->held[k]) {
@@ -500,7 +500,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         if (sd.rigid && wrenches.count(sd.key())) {
           RigidObject::Live& b = sd.rigid->body().live(st);
           keptRigid.emplace_back(sd.rigid, b);
-          sd.rigid->apply(st, wrenches.at(sd.key()), h);
+          sd.rigid->apply(st, rigidC.at(sd.key()), wrenches.at(sd.key()), h);
           wrenches.erase(sd.key());
           if (!b.p.allFinite() || !b.v.allFinite() || !b.w.allFinite() || !b.q.coeffs().allFinite()) {
             finite = false;
