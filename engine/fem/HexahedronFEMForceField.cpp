@@ -21,6 +21,7 @@
 #include "engine/mechanics/ElementMass.h"
 #include "core/Scene.h"
 #include "engine/Roles.h"
+#include "solvers/linear/LinearSolver.h"
 #include "core/State.h"
 #include "engine/fem/TetKernel.h"
 #include "engine/mechanics/MechanicalObject.h"
@@ -98,7 +99,7 @@ Eigen::Matrix3d frame(HexMethod m, const Nodes8& p) {
   return orthogonalFactor(A);  // A = R S: R is the rows frame
 }
 
-class HexahedronFEM : public Component, public ForceField, public Stateful {
+class HexahedronFEM : public Component, public ForceField, public Stateful, public RotationFinder {
  public:
   using Component::Component;
 
@@ -135,6 +136,10 @@ class HexahedronFEM : public Component, public ForceField, public Stateful {
     }
   }
   MechanicalObject& mstate() const override { return *state_; }
+  void nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const override {
+    const std::vector<Eigen::Matrix3d>& Q = stateIn<Live>(s).Q;
+    R = averageNodeRotations(state_->size(), hexa_.empty() ? nullptr : hexa_[0].data(), 8, Q.data(), static_cast<int>(Q.size()));
+  }
   // The rest -> current rotation of each element at the last addForce.
   struct Live : ComponentStateOf<Live> {
     std::vector<Eigen::Matrix3d> Q;

@@ -58,6 +58,14 @@ void TetrahedronFEMForceField::init() {
                                                               [&] { return colorElements(tets_, n); });
 }
 
+void TetrahedronFEMForceField::nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const {
+  const Live& l = live(s);
+  // An element's frame maps world to element axes: rest -> current is rot^T rot0.
+  std::vector<Eigen::Matrix3d> Q(tets_.cols());
+  for (int e = 0; e < tets_.cols(); ++e) Q[e] = l.rot[e].transpose() * rot0_[e];
+  R = averageNodeRotations(state_->size(), tets_.data(), 4, Q.data(), static_cast<int>(Q.size()));
+}
+
 Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {
   Mat34 p;
   for (int k = 0; k < 4; ++k) p.col(k) = x.col(tets_(k, e));

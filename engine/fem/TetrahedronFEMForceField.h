@@ -10,13 +10,14 @@
 #include "core/State.h"
 #include "core/Component.h"
 #include "engine/fem/TetKernel.h"
+#include "solvers/linear/LinearSolver.h"
 
 namespace viscera {
 
 class Registry;
 struct ElementColoring;
 
-class TetrahedronFEMForceField : public Component, public ForceField, public Stateful {
+class TetrahedronFEMForceField : public Component, public ForceField, public Stateful, public RotationFinder {
  public:
   using Component::Component;
   void init() override;
@@ -40,6 +41,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override;
   std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const override;
+  // Each node's rest -> current rotation, from its elements' frames at the last addForce.
+  void nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const override;
 
   fem::Method method() const { return method_; }
   const TetList& tetrahedra() const { return tets_; }

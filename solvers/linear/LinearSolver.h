@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
@@ -70,6 +71,21 @@ LinearSolveInfo preconditionedConjugateGradient(const LinearProblem& problem, co
 Preconditioner jacobiPreconditioner(const BlockSparseMatrix& A);
 Preconditioner blockJacobiPreconditioner(const BlockSparseMatrix& A);
 Preconditioner ssorPreconditioner(const BlockSparseMatrix& A, double omega);
+
+// How each node of a body has turned since rest (SOFA's rotation finders: the corotational force
+// fields), as of their last force evaluation: the warp preconditioners turn a matrix factorised
+// earlier with these rotations.
+class RotationFinder {
+ public:
+  virtual ~RotationFinder() = default;
+  // One rest -> current rotation per node of the body.
+  virtual void nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const = 0;
+};
+// The rotation of each of `nodeCount` nodes from those of the elements around it: the orthonormal
+// (polar) factor of their sum, identity for a node in no element. Element e has the
+// `nodesPerElement` nodes elementNodes[e * nodesPerElement ...].
+std::vector<Eigen::Matrix3d> averageNodeRotations(int nodeCount, const int* elementNodes, int nodesPerElement,
+                                                  const Eigen::Matrix3d* elementRotations, int elementCount);
 
 // Sparse LDL^T (CHOLMOD). The symbolic analysis is done once for a pattern and reused.
 class CholmodSolver {

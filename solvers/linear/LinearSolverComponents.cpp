@@ -1,6 +1,8 @@
 // Scene components for the linear solvers: CGLinearSolver, PCGLinearSolver with its preconditioners,
 // and SparseLDLSolver.
+#include <Eigen/LU>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <memory>
 
 #include "core/Component.h"
@@ -126,29 +128,152 @@ class SVDLinearSolver : public Component, public LinearSolver {
   double threshold_ = 1e-6;
 };
 
-// A preconditioner for PCGLinearSolver, built from the assembled matrix.
+// A preconditioner for PCGLinearSolver, built from the assembled matrix (and, for those that keep
+// a factorisation between solves, their part of the state). An empty result is a failure, said in
+// `message`.
 class PreconditionerComponent : public Component {
  public:
   using Component::Component;
-  virtual Preconditioner build(const BlockSparseMatrix& A) const = 0;
+  virtual Preconditioner build(State& s, const BlockSparseMatrix& A, std::string& message) const = 0;
 };
 
 class JacobiPreconditioner : public PreconditionerComponent {
  public:
   using PreconditionerComponent::PreconditionerComponent;
-  Preconditioner build(const BlockSparseMatrix& A) const override { return jacobiPreconditioner(A); }
+  Preconditioner build(State&, const BlockSparseMatrix& A, std::string&) const override { return jacobiPreconditioner(A); }
 };
 
 class BlockJacobiPreconditioner : public PreconditionerComponent {
  public:
   using PreconditionerComponent::PreconditionerComponent;
-  Preconditioner build(const BlockSparseMatrix& A) const override { return blockJacobiPreconditioner(A); }
+  Preconditioner build(State&, const BlockSparseMatrix& A, std::string&) const override {
+    return blockJacobiPreconditioner(A);
+  }
 };
 
 class SSORPreconditioner : public PreconditionerComponent {
  public:
   using PreconditionerComponent::PreconditionerComponent;
-  Preconditioner build(const BlockSparseMatrix& A) const override { return ssorPreconditioner(A, attrs().real("omega")); }
+  Preconditioner build(State&, const BlockSparseMatrix& A, std::string&) const override {
+    return ssorPreconditioner(A, attrs().real("omega"));
+  }
+};
+
+// SOFA's RotationMatrixSystem: the rotations a WarpPreconditioner turns its factorised matrix with
+// (from the corotational force field in its context, or the one `rotationFinder` names), and how
+// often that matrix is factorised again (`assemblingRate` solves).
+class RotationMatrixSystem : public Component {
+ public:
+  using Component::Component;
+  void init() override {
+    if (attrs_.isSet("rotationFinder")) {
+      finder_ = dynamic_cast<const RotationFinder*>(linkedComponent("rotationFinder"));
+      if (!finder_)
+        throw error("rotationFinder", "does not link to a corotational force field (TetrahedronFEMForceField or "
+                                      "HexahedronFEMForceField)");
+    }
+  }
+  const RotationFinder* finder() const { return finder_; }
+  int rate() const { return static_cast<int>(attrs_.integer("assemblingRate")); }
+
+ private:
+  const RotationFinder* finder_ = nullptr;
+};
+
+// SOFA's WarpPreconditioner and PrecomputedWarpPreconditioner: a factorisation of the step's matrix
+// A0, kept for later solves and turned with how each node has rotated since it was made:
+// M^-1 r = Q A0^-1 Q^T r, Q the block diagonal of R_i R0_i^T (node rotations now and at the
+// factorisation). The corotational stiffness turns with its elements, so this stays a close inverse
+// for many steps. WarpPreconditioner factorises again every update_step solves (or the
+// RotationMatrixSystem's assemblingRate, the longer); PrecomputedWarpPreconditioner factorises once.
+class WarpPreconditioner : public PreconditionerComponent, public Stateful {
+ public:
+  using PreconditionerComponent::PreconditionerComponent;
+  void init() override {
+    precomputed_ = typeName() == "PrecomputedWarpPreconditioner";
+    if (attrs_.isSet("linearSolver")) {
+      Component* c = linkedComponent("linearSolver");
+      auto* l = dynamic_cast<LinearSolver*>(c);
+      if (!l || !l->needsMatrix() || dynamic_cast<PreconditionerComponent*>(c) || c->typeName() == "PCGLinearSolver")
+        throw error("linearSolver", "does not link to a direct solver (SparseLDLSolver, SparseCholeskySolver, ...): "
+                                    "the factorisation the preconditioner turns");
+    }
+    const RotationMatrixSystem* system = nullptr;
+    if (attrs_.isSet("linearSystem")) {
+      system = dynamic_cast<const RotationMatrixSystem*>(linkedComponent("linearSystem"));
+      if (!system && !precomputed_)
+        throw error("linearSystem", "does not link to a RotationMatrixSystem");
+    } else {
+      system = node().findInContext<RotationMatrixSystem>();
+    }
+    period_ = precomputed_ ? 0 : static_cast<int>(attrs_.integer("update_step"));
+    if (system && !precomputed_) period_ = std::max(period_, system->rate());
+    finder_ = system ? system->finder() : nullptr;
+    if (!finder_) finder_ = node().findInContext<RotationFinder>();
+    if (!finder_) {
+      std::vector<RotationFinder*> below;
+      node().collect(below);
+      if (!below.empty()) finder_ = below.front();
+    }
+    useRotations_ = !precomputed_ || attrs_.boolean("use_rotations");
+    if (!finder_ && useRotations_)
+      throw error("needs a corotational force field (TetrahedronFEMForceField or HexahedronFEMForceField, method large "
+                  "or polar) in its node or above: the rotations it turns the factorised matrix with");
+  }
+  struct Live : ComponentStateOf<Live> {
+    std::shared_ptr<CholmodSolver> chol;  // A0's factorisation
+    std::vector<Eigen::Matrix3d> R0;      // node rotations when it was made
+    long solves = 0;                      // since it was made
+    Live() = default;
+    Live(const Live&) {}  // a copied state factorises its own at its first solve
+    Live& operator=(const Live&) = delete;
+    void save(StateWriter&) const override {}
+    void load(StateReader&) override {}
+  };
+  std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
+
+  Preconditioner build(State& s, const BlockSparseMatrix& A, std::string& message) const override {
+    Live& l = stateIn<Live>(s);
+    std::vector<Eigen::Matrix3d> R;
+    if (useRotations_) {
+      finder_->nodeRotations(s, R);
+      if (3 * static_cast<long>(R.size()) != A.rows()) {
+        message = typeName() + " '" + name() + "': the system has " + std::to_string(A.rows()) +
+                  " rows but the rotations are of " + std::to_string(R.size()) + " nodes (one body's nodes only)";
+        return {};
+      }
+    }
+    if (!l.chol || (period_ > 0 && l.solves >= period_)) {
+      auto chol = std::make_shared<CholmodSolver>();
+      chol->allowIndefinite(true);
+      if (!chol->factorize(A, message)) {
+        message = typeName() + " '" + name() + "': " + message;
+        return {};
+      }
+      l.chol = std::move(chol);
+      l.R0 = R;
+      l.solves = 0;
+    }
+    ++l.solves;
+    std::shared_ptr<CholmodSolver> chol = l.chol;
+    if (!useRotations_) return [chol](const Eigen::VectorXd& r, Eigen::VectorXd& z) { chol->solve(r, z); };
+    std::vector<Eigen::Matrix3d> Q(R.size());
+    for (size_t i = 0; i < R.size(); ++i) Q[i] = R[i] * l.R0[i].transpose();
+    return [chol, Q = std::move(Q)](const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+      Eigen::VectorXd t(r.size());
+      for (size_t i = 0; i < Q.size(); ++i) t.segment<3>(3 * i) = Q[i].transpose() * r.segment<3>(3 * i);
+      Eigen::VectorXd u;
+      chol->solve(t, u);
+      z.resize(r.size());
+      for (size_t i = 0; i < Q.size(); ++i) z.segment<3>(3 * i) = Q[i] * u.segment<3>(3 * i);
+    };
+  }
+
+ private:
+  bool precomputed_ = false;
+  bool useRotations_ = true;
+  int period_ = 1;  // solves between factorisations; 0: once
+  const RotationFinder* finder_ = nullptr;
 };
 
 class PCGLinearSolver : public Component, public LinearSolver {
@@ -163,7 +288,8 @@ class PCGLinearSolver : public Component, public LinearSolver {
                 c->typeName() != "PCGLinearSolver";
       if (!preconditioner_ && !direct_)
         throw error("preconditioner", "does not link to a preconditioner (JacobiPreconditioner, BlockJacobiPreconditioner, "
-                                      "SSORPreconditioner or a direct solver such as SparseLDLSolver)");
+                                      "SSORPreconditioner, WarpPreconditioner, PrecomputedWarpPreconditioner or a direct "
+                                      "solver such as SparseLDLSolver)");
     }
     updateStep_ = static_cast<int>(attrs_.integer("update_step"));
   }
@@ -192,7 +318,11 @@ class PCGLinearSolver : public Component, public LinearSolver {
       // SOFA rebuilds the preconditioner every update_step solves and keeps it in between.
       if (l.solves++ % updateStep_ == 0 || !precondition) {
         if (preconditioner_) {
-          precondition = preconditioner_->build(*p.matrix);
+          precondition = preconditioner_->build(s, *p.matrix, info.message);
+          if (!precondition) {
+            info.ok = false;
+            return info;
+          }
         } else {
           auto chol = std::make_shared<CholmodSolver>();
           if (!chol->factorize(*p.matrix, info.message)) {
@@ -216,6 +346,24 @@ class PCGLinearSolver : public Component, public LinearSolver {
 
 }  // namespace
 
+std::vector<Eigen::Matrix3d> averageNodeRotations(int nodeCount, const int* elementNodes, int nodesPerElement,
+                                                  const Eigen::Matrix3d* elementRotations, int elementCount) {
+  std::vector<Eigen::Matrix3d> sum(nodeCount, Eigen::Matrix3d::Zero());
+  for (int e = 0; e < elementCount; ++e)
+    for (int k = 0; k < nodesPerElement; ++k) sum[elementNodes[e * nodesPerElement + k]] += elementRotations[e];
+  for (Eigen::Matrix3d& m : sum) {
+    if (m.isZero()) {
+      m.setIdentity();
+      continue;
+    }
+    Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d U = svd.matrixU();
+    if ((U * svd.matrixV().transpose()).determinant() < 0) U.col(2) = -U.col(2);
+    m = U * svd.matrixV().transpose();
+  }
+  return sum;
+}
+
 std::unique_ptr<ComponentState> LinearSolver::initialState() const { return std::make_unique<NoWorkspace>(); }
 
 void registerLinearSolvers(Registry& r) {
@@ -227,8 +375,9 @@ void registerLinearSolvers(Registry& r) {
     s.doc = "Preconditioned conjugate gradient, as SOFA's: starts from the previous step's solution and stops after "
             "`iterations` or when r^T M^-1 r <= tolerance b^T b (without a preconditioner the squared relative "
             "residual, so tolerance 1e-5 is a residual of about 3e-3). The preconditioner M is a linked "
-            "JacobiPreconditioner, BlockJacobiPreconditioner or SSORPreconditioner, or a direct solver (the factorised "
-            "matrix, as SOFA's AsyncSparseLDLSolver there), rebuilt every update_step steps.";
+            "JacobiPreconditioner, BlockJacobiPreconditioner, SSORPreconditioner, WarpPreconditioner or "
+            "PrecomputedWarpPreconditioner, or a direct solver (the factorised matrix, as SOFA's AsyncSparseLDLSolver "
+            "there), rebuilt every update_step steps.";
     s.add(AttrSpec::integer("iterations").def("25").atLeast(1).help("maximum number of iterations"));
     s.add(AttrSpec::real("tolerance").def("1e-5").atLeast(0).help("stop when r^T M^-1 r <= tolerance b^T b"));
     s.add(AttrSpec::boolean("use_precond").def("true").help("apply the preconditioner (false: plain conjugate gradient)"));
@@ -258,6 +407,67 @@ void registerLinearSolvers(Registry& r) {
     } else {
       s.factory = [](BuildContext& c) { return std::make_unique<BlockJacobiPreconditioner>(c); };
     }
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "RotationMatrixSystem";
+    s.category = "solver";
+    s.doc = "The rotations a WarpPreconditioner turns its factorised matrix with (SOFA's): each node's, averaged from "
+            "the elements of the corotational force field in its context, and how often the matrix is factorised "
+            "again.";
+    s.add(AttrSpec::integer("assemblingRate").def("1").atLeast(1).help(
+        "factorise the step's matrix again every this many solves (the WarpPreconditioner's update_step, if longer, "
+        "wins)"));
+    s.add(AttrSpec::link("rotationFinder").help(
+        "the corotational force field whose rotations are used (default: the one in the context)"));
+    s.add(AttrSpec::link("mainSystem").help("accepted for SOFA scenes: the matrix factorised is the step's"));
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<RotationMatrixSystem>(c); };
+    r.add(std::move(s));
+  }
+  for (const char* name : {"WarpPreconditioner", "PrecomputedWarpPreconditioner"}) {
+    const bool precomputed = std::string(name) == "PrecomputedWarpPreconditioner";
+    ComponentSpec s;
+    s.name = name;
+    s.category = "solver";
+    s.doc = precomputed
+                ? "For PCGLinearSolver: the step's matrix factorised once, at the first solve, and turned at every "
+                  "later one with how each node has rotated since: M^-1 = Q A0^-1 Q^T (SOFA's, which stores A0^-1 "
+                  "densely; a factorisation gives the same products)."
+                : "For PCGLinearSolver: the step's matrix factorised and kept for update_step solves, turned meanwhile "
+                  "with how each node has rotated since: M^-1 = Q A0^-1 Q^T, Q the nodes' rotations (from the "
+                  "corotational force field in the context) times their transposes at the factorisation.";
+    s.add(AttrSpec::link("linearSolver").help("the direct solver whose factorisation is used (a sparse LDL^T here)"));
+    s.add(AttrSpec::link("linearSystem").help(
+        precomputed ? "accepted for SOFA scenes (PrecomputedMatrixSystem)" : "its RotationMatrixSystem (default: the one in the context)"));
+    if (precomputed) {
+      s.add(AttrSpec::boolean("use_rotations").def("true").help("turn the factorised matrix with the nodes' rotations"));
+      s.add(AttrSpec::boolean("jmjt_twostep").def("true").help("accepted for SOFA scenes (a contact compliance option)"));
+      s.add(AttrSpec::boolean("use_file").def("true").help(
+          "accepted for SOFA scenes, which cache the dense inverse in a file; the factorisation is made at the first solve"));
+      s.add(AttrSpec::boolean("share_matrix").def("true").help("accepted for SOFA scenes"));
+      s.add(AttrSpec::real("draw_rotations_scale").def("0").help("accepted for SOFA scenes (drawing)"));
+    } else {
+      s.add(AttrSpec::integer("update_step").def("1").atLeast(1).help("factorise the step's matrix again every this many solves"));
+      s.add(AttrSpec::integer("useRotationFinder").def("0").atLeast(0).atMost(0).help(
+          "which rotation finder of the context (only the first, 0, here)"));
+    }
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<WarpPreconditioner>(c); };
+    r.add(std::move(s));
+  }
+  {
+    // Kept as a component (not skipped) so that a PrecomputedWarpPreconditioner's link to it resolves.
+    ComponentSpec s;
+    s.name = "PrecomputedMatrixSystem";
+    s.category = "solver";
+    s.doc = "The linear system of a PrecomputedWarpPreconditioner in SOFA scenes, where SOFA keeps the dense inverse; "
+            "here the preconditioner keeps its factorisation itself, and this holds nothing.";
+    s.add(AttrSpec::string("template").def("").help("SOFA's matrix type; accepted and ignored"));
+    s.factory = [](BuildContext& c) { return std::make_unique<Component>(c); };
     r.add(std::move(s));
   }
   {

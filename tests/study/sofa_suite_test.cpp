@@ -185,6 +185,7 @@ TEST(SofaSuite, SofasRegressionScenesThatPassStayPassing) {
       "Component/LinearSolver/Preconditioner/FEMBAR_PCG_JacobiPreconditioner.scn",
       "Component/LinearSolver/Preconditioner/FEMBAR_PCG_NoPreconditioner.scn",
       "Component/LinearSolver/Preconditioner/FEMBAR_PCG_SSORPreconditioner.scn",
+      "Component/LinearSolver/Preconditioner/FEMBAR_PCG_WarpPreconditioner.scn",
       "Component/Mass/UniformMass.scn",
       "Component/Mass/DiagonalMass.scn",
       "Component/Mass/MeshMatrixMass.scn",
