@@ -137,6 +137,8 @@ class HexahedronFEM : public Component, public ForceField, public Stateful, publ
   }
   MechanicalObject& mstate() const override { return *state_; }
   void nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const override {
+    // The hexahedra's node lists, read as one array of 8 ints per element.
+    static_assert(sizeof(std::array<int, 8>) == 8 * sizeof(int), "std::array<int, 8> is not 8 packed ints");
     const std::vector<Eigen::Matrix3d>& Q = stateIn<Live>(s).Q;
     R = averageNodeRotations(state_->size(), hexa_.empty() ? nullptr : hexa_[0].data(), 8, Q.data(), static_cast<int>(Q.size()));
   }

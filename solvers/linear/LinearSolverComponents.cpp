@@ -7,6 +7,7 @@
 
 #include "core/Component.h"
 #include "core/Registry.h"
+#include "core/Scene.h"
 #include "solvers/linear/LinearSolver.h"
 
 namespace viscera {
@@ -135,6 +136,9 @@ class PreconditionerComponent : public Component {
  public:
   using Component::Component;
   virtual Preconditioner build(State& s, const BlockSparseMatrix& A, std::string& message) const = 0;
+  // True for one that decides itself when to rebuild (it is asked at every solve, whatever the
+  // PCG's update_step).
+  virtual bool rebuildsItself() const { return false; }
 };
 
 class JacobiPreconditioner : public PreconditionerComponent {
@@ -191,35 +195,31 @@ class WarpPreconditioner : public PreconditionerComponent, public Stateful {
   using PreconditionerComponent::PreconditionerComponent;
   void init() override {
     precomputed_ = typeName() == "PrecomputedWarpPreconditioner";
-    if (attrs_.isSet("linearSolver")) {
-      Component* c = linkedComponent("linearSolver");
-      auto* l = dynamic_cast<LinearSolver*>(c);
-      if (!l || !l->needsMatrix() || dynamic_cast<PreconditionerComponent*>(c) || c->typeName() == "PCGLinearSolver")
-        throw error("linearSolver", "does not link to a direct solver (SparseLDLSolver, SparseCholeskySolver, ...): "
-                                    "the factorisation the preconditioner turns");
-    }
-    const RotationMatrixSystem* system = nullptr;
+    // The factorisation is made here, with CHOLMOD as SparseLDLSolver makes it; the link says
+    // which direct solver a SOFA scene meant, and must name one.
+    if (attrs_.isSet("linearSolver") && !dynamic_cast<SparseLDLSolver*>(linkedComponent("linearSolver")))
+      throw error("linearSolver", "does not link to a direct solver (SparseLDLSolver, SparseCholeskySolver, "
+                                  "AsyncSparseLDLSolver, ...): the factorisation the preconditioner turns");
+    RotationMatrixSystem* system = nullptr;
     if (attrs_.isSet("linearSystem")) {
-      system = dynamic_cast<const RotationMatrixSystem*>(linkedComponent("linearSystem"));
+      system = dynamic_cast<RotationMatrixSystem*>(linkedComponent("linearSystem"));
       if (!system && !precomputed_)
         throw error("linearSystem", "does not link to a RotationMatrixSystem");
     } else {
       system = node().findInContext<RotationMatrixSystem>();
     }
+    if (system) scene().initComponent(*system);  // its rotationFinder link is resolved in its init
     period_ = precomputed_ ? 0 : static_cast<int>(attrs_.integer("update_step"));
     if (system && !precomputed_) period_ = std::max(period_, system->rate());
     finder_ = system ? system->finder() : nullptr;
-    if (!finder_) finder_ = node().findInContext<RotationFinder>();
-    if (!finder_) {
-      std::vector<RotationFinder*> below;
-      node().collect(below);
-      if (!below.empty()) finder_ = below.front();
-    }
+    // As SOFA's: the first rotation finder in the node, else in the nearest ancestor that has one.
+    for (const Node* n = &node(); n && !finder_; n = n->parent()) finder_ = n->find<RotationFinder>();
     useRotations_ = !precomputed_ || attrs_.boolean("use_rotations");
     if (!finder_ && useRotations_)
-      throw error("needs a corotational force field (TetrahedronFEMForceField or HexahedronFEMForceField, method large "
-                  "or polar) in its node or above: the rotations it turns the factorised matrix with");
+      throw error("needs a corotational force field (TetrahedronFEMForceField or HexahedronFEMForceField) in its node "
+                  "or above, or a RotationMatrixSystem naming one: the rotations it turns the factorised matrix with");
   }
+  bool rebuildsItself() const override { return true; }
   struct Live : ComponentStateOf<Live> {
     std::shared_ptr<CholmodSolver> chol;  // A0's factorisation
     std::vector<Eigen::Matrix3d> R0;      // node rotations when it was made
@@ -315,8 +315,10 @@ class PCGLinearSolver : public Component, public LinearSolver {
         info.message = "PCGLinearSolver's preconditioner needs an assembled matrix";
         return info;
       }
-      // SOFA rebuilds the preconditioner every update_step solves and keeps it in between.
-      if (l.solves++ % updateStep_ == 0 || !precondition) {
+      // SOFA rebuilds the preconditioner every update_step solves and keeps it in between; the
+      // warp preconditioners turn theirs at every solve and refactorise on their own count.
+      const bool rebuild = l.solves++ % updateStep_ == 0 || !precondition || (preconditioner_ && preconditioner_->rebuildsItself());
+      if (rebuild) {
         if (preconditioner_) {
           precondition = preconditioner_->build(s, *p.matrix, info.message);
           if (!precondition) {
@@ -435,11 +437,15 @@ void registerLinearSolvers(Registry& r) {
     s.doc = precomputed
                 ? "For PCGLinearSolver: the step's matrix factorised once, at the first solve, and turned at every "
                   "later one with how each node has rotated since: M^-1 = Q A0^-1 Q^T (SOFA's, which stores A0^-1 "
-                  "densely; a factorisation gives the same products)."
+                  "densely; a factorisation gives the same products). A copied or restored state factorises again at "
+                  "its first solve, as PrecomputedLinearSolver does."
                 : "For PCGLinearSolver: the step's matrix factorised and kept for update_step solves, turned meanwhile "
                   "with how each node has rotated since: M^-1 = Q A0^-1 Q^T, Q the nodes' rotations (from the "
-                  "corotational force field in the context) times their transposes at the factorisation.";
-    s.add(AttrSpec::link("linearSolver").help("the direct solver whose factorisation is used (a sparse LDL^T here)"));
+                  "corotational force field in the context) times their transposes at the factorisation. Turned at "
+                  "every solve, whatever the PCG's update_step. A copied or restored state factorises again at its "
+                  "first solve.";
+    s.add(AttrSpec::link("linearSolver").help(
+        "the direct solver meant (SparseLDLSolver or an alias); the factorisation is CHOLMOD's LDL^T, made here"));
     s.add(AttrSpec::link("linearSystem").help(
         precomputed ? "accepted for SOFA scenes (PrecomputedMatrixSystem)" : "its RotationMatrixSystem (default: the one in the context)"));
     if (precomputed) {

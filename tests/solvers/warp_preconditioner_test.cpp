@@ -48,21 +48,23 @@ TEST(AverageNodeRotations, DifferentRotationsAverageToARotationBetween) {
   EXPECT_LT((nodes[4] - turn(30, axis)).norm(), 1e-12);
 }
 
-std::string beam(const std::string& solvers) {
+const char* kTetrahedra = R"(<TetrahedronFEMForceField method="large" youngModulus="1000" poissonRatio="0.3"/>)";
+
+std::string beam(const std::string& solvers, const std::string& fem = kTetrahedra) {
   return R"(<Node name="root" dt="0.01" gravity="0 0 0">
   <EulerImplicitSolver rayleighStiffness="0.1" rayleighMass="0.1"/>
   )" + solvers + R"(
   <RegularGridTopology name="grid" n="3 3 6" min="0 0 0" max="1 1 3"/>
   <MechanicalObject name="dofs"/>
   <UniformMass totalMass="2"/>
-  <TetrahedronFEMForceField method="large" youngModulus="1000" poissonRatio="0.3"/>
+  )" + fem + R"(
 </Node>)";
 }
 
 // Steps the beam once at rest (where a precomputed preconditioner factorises), then turns it
 // rigidly by 50 degrees with a velocity field that deforms it, and steps once more: the positions.
-Eigen::Matrix3Xd turnedStep(const std::string& solvers) {
-  auto scene = buildScene(io::parseSceneText(beam(solvers), "warp.xml"));
+Eigen::Matrix3Xd turnedStep(const std::string& solvers, const std::string& fem = kTetrahedra) {
+  auto scene = buildScene(io::parseSceneText(beam(solvers, fem), "warp.xml"));
   Simulation sim(*scene);
   sim.begin();
   EXPECT_FALSE(sim.step());
@@ -108,6 +110,41 @@ TEST(WarpPreconditioner, RefactorisedEveryStepAndTurnedBetweenFactorisations) {
   }
 }
 
+TEST(WarpPreconditioner, HexahedraTurnItToo) {
+  const char* hexahedra = R"(<HexahedronFEMForceField method="large" youngModulus="1000" poissonRatio="0.3"/>)";
+  const Eigen::Matrix3Xd direct = turnedStep("<SparseLDLSolver/>", hexahedra);
+  const Eigen::Matrix3Xd warped = turnedStep(R"(<PCGLinearSolver iterations="1" tolerance="0" preconditioner="@warp"/>
+  <PrecomputedWarpPreconditioner name="warp" linearSolver="@ldl"/>
+  <SparseLDLSolver name="ldl"/>)", hexahedra);
+  EXPECT_LT((warped - direct).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(WarpPreconditioner, TurnedAtEverySolveWhateverThePcgsUpdateStep) {
+  // The PCG rebuilds its other preconditioners every update_step solves; the warp turns at each.
+  const Eigen::Matrix3Xd direct = turnedStep("<SparseLDLSolver/>");
+  const Eigen::Matrix3Xd warped = turnedStep(R"(<PCGLinearSolver iterations="1" tolerance="0" update_step="2" preconditioner="@warp"/>
+  <WarpPreconditioner name="warp" linearSolver="@ldl" update_step="5"/>
+  <SparseLDLSolver name="ldl"/>)");
+  EXPECT_LT((warped - direct).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(WarpPreconditioner, TheRotationMatrixSystemsRotationFinderIsTheOneUsed) {
+  // Two force fields on the beam: a negligible small-strain one first (its nodes never turn), the
+  // corotational one second. Named by the RotationMatrixSystem, the corotational one turns the
+  // factorisation; left to the context, the first one is taken and nothing turns.
+  const std::string fems = R"(<TetrahedronFEMForceField name="small" method="small" youngModulus="1e-9" poissonRatio="0.3"/>
+  <TetrahedronFEMForceField name="large" method="large" youngModulus="1000" poissonRatio="0.3"/>)";
+  const Eigen::Matrix3Xd direct = turnedStep("<SparseLDLSolver/>", fems);
+  auto warped = [&](const std::string& system) {
+    return turnedStep(R"(<PCGLinearSolver iterations="1" tolerance="0" preconditioner="@warp"/>
+  )" + system + R"(
+  <WarpPreconditioner name="warp" linearSolver="@ldl" update_step="5"/>
+  <SparseLDLSolver name="ldl"/>)", fems);
+  };
+  EXPECT_LT((warped(R"(<RotationMatrixSystem rotationFinder="@large"/>)") - direct).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT((warped("<RotationMatrixSystem/>") - direct).cwiseAbs().maxCoeff(), 1e-5);
+}
+
 TEST(WarpPreconditioner, NeedsACorotationalForceFieldAndADirectSolver) {
   const std::string noFem = R"(<Node name="root" dt="0.01">
   <EulerImplicitSolver/>
@@ -125,7 +162,7 @@ TEST(WarpPreconditioner, NeedsACorotationalForceFieldAndADirectSolver) {
   }
   const std::string badSolver = beam(R"(<PCGLinearSolver preconditioner="@warp"/>
   <WarpPreconditioner name="warp" linearSolver="@cg"/>
-  <CGLinearSolver name="cg" assembled="false"/>)");
+  <CGLinearSolver name="cg"/>)");
   try {
     auto scene = buildScene(io::parseSceneText(badSolver, "warp.xml"));
     Simulation sim(*scene);
