@@ -4,6 +4,7 @@
 #include "io/scene/InputCache.h"
 
 #include <algorithm>
+#include <sstream>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -709,6 +710,23 @@ void CollisionResponse::init() {
     throw error("responseParams", "UnilateralContactConstraint has no friction; use FrictionContactConstraint for mu > 0");
   if (response == ContactSettings::Response::Penalty && mu > 0)
     throw error("responseParams", "friction (mu) needs the constraint response: response=\"FrictionContactConstraint\"");
+  // RuleBasedContactManager's rules: triplets "model model response" (a model by name, group
+  // number or *). One response serves every contact here, so each rule must name it.
+  if (attrs_.isSet("rules")) {
+    std::istringstream in(attrs_.str("rules"));
+    std::vector<std::string> t;
+    for (std::string w; in >> w;) t.push_back(w);
+    if (t.size() % 3 != 0) {
+      scene().addNote(loc().str() + ": note: " + typeName() + ".rules '" + attrs_.str("rules") +
+                      "' is not a list of (model, model, response) triplets: no rule applies and every contact takes "
+                      "the default response, as in SOFA");
+    } else {
+      for (size_t i = 0; i < t.size(); i += 3)
+        if (t[i + 2] != r)
+          throw error("rules", "the rule '" + t[i] + " " + t[i + 1] + " " + t[i + 2] + "' asks for " + t[i + 2] +
+                                   "; one response (" + r + ") serves every contact here");
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -131,6 +131,9 @@ void registerCollision(Registry& r) {
     s.add(AttrSpec::real("mu").atLeast(0).help(
         "Coulomb friction coefficient (overrides responseParams); unless given, SOFA's: 0.8 for FrictionContactConstraint "
         "and FrictionContact, none for UnilateralContactConstraint"));
+    s.add(AttrSpec::string("rules").help(
+        "RuleBasedContactManager's rules, triplets \"model model response\"; one response serves every contact here, "
+        "so each rule must name `response`"));
     s.factory = [](BuildContext& c) { return std::make_unique<CollisionResponse>(c); };
     r.add(std::move(s));
   }

@@ -221,6 +221,29 @@ TEST(TwoBodyContact, TheConstraintResponsesFrictionDefaultsAreSofas) {
   EXPECT_NE(why.find("CollisionResponse.responseParams: UnilateralContactConstraint has no friction"), std::string::npos) << why;
 }
 
+// SOFA's RuleBasedContactManager picks a response per pair of models; one response serves every
+// contact here, so rules naming another are refused, and a rules text that is no list of
+// triplets applies no rule (the default response, as in SOFA), with a note.
+TEST(TwoBodyContact, ContactRulesMustNameTheOneResponse) {
+  auto build = [](const std::string& rules) {
+    std::string text = world("FrictionContactConstraint\" rules=\"" + rules, "<FreeMotionAnimationLoop/><GenericConstraintSolver/>" + rigidCube());
+    auto scene = buildScene(io::parseSceneText(text, "two_body.xml"));
+    scene->init();
+    return scene;
+  };
+  EXPECT_EQ(build("1 * FrictionContactConstraint  * * FrictionContactConstraint")->all<CollisionPipeline>().front()->settings().mu, 0.8);
+  auto fallback = build("default");
+  const auto& notes = fallback->notes();
+  EXPECT_TRUE(std::any_of(notes.begin(), notes.end(), [](const std::string& n) { return n.find("no rule applies") != std::string::npos; }));
+  std::string why;
+  try {
+    build("1 2 PenalityContactForceField");
+  } catch (const Error& e) {
+    why = e.what();
+  }
+  EXPECT_NE(why.find("rules: the rule '1 2 PenalityContactForceField' asks for PenalityContactForceField"), std::string::npos) << why;
+}
+
 // An instrument with a sphere and a surface of its own (SOFA's instrument node with a collision
 // child): the sphere sits inside its own surface, which is no contact.
 TEST(TwoBodyContact, AnInstrumentsSphereIsNotInContactWithItsOwnSurface) {
