@@ -27,7 +27,7 @@ inline void blocksGeneric(const double* R, const double* G, double la, double ma
       const double* hi = h + 3 * i;
       const double* hj = h + 3 * j;
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
-      double* k = values + 9 * static_cast<long>(slots[4 * i + j]);
+      double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
       for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r) k[3 * c + r] += la * hi[r] * hj[c] + ma * hj[r] * hi[c] + (r == c ? d : 0.0);
     }
@@ -189,8 +189,9 @@ __attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const 
   }
 }
 
-// A column-major 3 x 3 block is nine doubles: two four-lane vectors, (B00 B10 B20 B01) and
-// (B11 B21 B02 B12), and B22. With P = (h0 h1 h2 h0), S = (h0 h0 h0 h1), Q = (h1 h2 h0 h1),
+// A 3 x 3 block by columns is nine doubles: two four-lane vectors, (B00 B10 B20 B01) and
+// (B11 B21 B02 B12), and B22 (the matrix stores its blocks by rows, so K_ij is written, by
+// columns, where K_ji goes). With P = (h0 h1 h2 h0), S = (h0 h0 h0 h1), Q = (h1 h2 h0 h1),
 // T = (h1 h1 h2 h2) of a node's h, the block (i, j) is
 //   la P_i S_j + ma P_j S_i,   la Q_i T_j + ma Q_j T_i,   (la + ma) h_i2 h_j2,
 // plus d = ma g_i . g_j on its diagonal (lanes 0 of both vectors and B22). Loads and stores never
@@ -219,7 +220,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const 
       const __m256d diag = _mm256_set_pd(0, 0, 0, d);
       const __m256d v0 = _mm256_fmadd_pd(laP[i], S[j], _mm256_fmadd_pd(maP[j], S[i], diag));
       const __m256d v1 = _mm256_fmadd_pd(laQ[i], T[j], _mm256_fmadd_pd(maQ[j], T[i], diag));
-      double* k = values + 9 * static_cast<long>(slots[4 * i + j]);
+      double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
       _mm256_storeu_pd(k, _mm256_add_pd(_mm256_loadu_pd(k), v0));
       _mm256_storeu_pd(k + 4, _mm256_add_pd(_mm256_loadu_pd(k + 4), v1));
       k[8] += lm * h[i][2] * h[j][2] + d;

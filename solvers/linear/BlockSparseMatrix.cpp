@@ -49,51 +49,64 @@ void BlockSparseMatrix::scale(double a) {
 
 namespace {
 
+// Block rows [r0, r1) of y = A x; n is the number of block rows (x has 3 n entries).
 using RowsKernel = void (*)(const int* rowStart, const int* cols, const double* values, const double* x, double* y,
-                            int r0, int r1);
+                            int r0, int r1, int n);
 
 void multiplyRowsBaseline(const int* rowStart, const int* cols, const double* values, const double* x, double* y,
-                          int r0, int r1) {
+                          int r0, int r1, int) {
   for (int i = r0; i < r1; ++i) {
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
     for (int s = rowStart[i]; s < rowStart[i + 1]; ++s)
-      acc.noalias() += Eigen::Map<const Eigen::Matrix3d>(values + 9 * s) * Eigen::Map<const Eigen::Vector3d>(x + 3 * cols[s]);
+      acc.noalias() += Eigen::Map<const BlockSparseMatrix::Block>(values + 9 * s) * Eigen::Map<const Eigen::Vector3d>(x + 3 * cols[s]);
     Eigen::Map<Eigen::Vector3d>(y + 3 * i) = acc;
   }
 }
 
 #if defined(__x86_64__)
-// One block = three columns; each is loaded as four doubles (the fourth belongs to the next
-// block, or to the padding after the last: its lane is never stored).
+// Each block row is loaded as four doubles (the fourth belongs to the next row or block, or to the
+// padding after the last) and multiplied lane by lane with the node triple x_j, also loaded as
+// four doubles (the last node's with a mask: nothing follows it); the fourth lanes are dropped
+// before the rows' sums. Two blocks at a time, in separate accumulators.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d triple(const double* x, int j, int n, __m256i three) {
+  return j + 1 < n ? _mm256_loadu_pd(x + 3 * j) : _mm256_maskload_pd(x + 3 * j, three);
+}
+
 __attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, const int* cols, const double* values,
-                                                          const double* x, double* y, int r0, int r1) {
+                                                          const double* x, double* y, int r0, int r1, int n) {
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   for (int i = r0; i < r1; ++i) {
-    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
+    __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd();
+    __m256d b0 = _mm256_setzero_pd(), b1 = _mm256_setzero_pd(), b2 = _mm256_setzero_pd();
     int s = rowStart[i];
     const int end = rowStart[i + 1];
     for (; s + 1 < end; s += 2) {
       const double* b = values + 9 * s;
-      const double* u = x + 3 * cols[s];
-      const double* w = x + 3 * cols[s + 1];
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), _mm256_broadcast_sd(u), a0);
-      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 9), _mm256_broadcast_sd(w), a1);
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), _mm256_broadcast_sd(u + 1), a0);
-      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 12), _mm256_broadcast_sd(w + 1), a1);
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), _mm256_broadcast_sd(u + 2), a0);
-      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 15), _mm256_broadcast_sd(w + 2), a1);
+      const __m256d u = triple(x, cols[s], n, three), w = triple(x, cols[s + 1], n, three);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), u, a0);
+      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), u, a1);
+      a2 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), u, a2);
+      b0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 9), w, b0);
+      b1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 12), w, b1);
+      b2 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 15), w, b2);
     }
     if (s < end) {
       const double* b = values + 9 * s;
-      const double* u = x + 3 * cols[s];
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), _mm256_broadcast_sd(u), a0);
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), _mm256_broadcast_sd(u + 1), a0);
-      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), _mm256_broadcast_sd(u + 2), a0);
+      const __m256d u = triple(x, cols[s], n, three);
+      a0 = _mm256_fmadd_pd(_mm256_loadu_pd(b), u, a0);
+      a1 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 3), u, a1);
+      a2 = _mm256_fmadd_pd(_mm256_loadu_pd(b + 6), u, a2);
     }
-    alignas(32) double out[4];
-    _mm256_store_pd(out, _mm256_add_pd(a0, a1));
-    y[3 * i] = out[0];
-    y[3 * i + 1] = out[1];
-    y[3 * i + 2] = out[2];
+    const __m256d keep = _mm256_castsi256_pd(three);
+    a0 = _mm256_and_pd(_mm256_add_pd(a0, b0), keep);
+    a1 = _mm256_and_pd(_mm256_add_pd(a1, b1), keep);
+    a2 = _mm256_and_pd(_mm256_add_pd(a2, b2), keep);
+    // Row sums: (a0, a1) pairwise, then the halves; a2 alone.
+    const __m256d h01 = _mm256_hadd_pd(a0, a1), h22 = _mm256_hadd_pd(a2, a2);
+    const __m128d s01 = _mm_add_pd(_mm256_castpd256_pd128(h01), _mm256_extractf128_pd(h01, 1));
+    const __m128d s22 = _mm_add_sd(_mm256_castpd256_pd128(h22), _mm256_extractf128_pd(h22, 1));
+    _mm_storeu_pd(y + 3 * i, s01);
+    y[3 * i + 2] = _mm_cvtsd_f64(s22);
   }
 }
 #endif
@@ -111,7 +124,7 @@ RowsKernel rowsKernel() {
 
 void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
   const RowsKernel kernel = rowsKernel();
-  auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1); };
+  auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1, n_); };
   if (n_ < 512) {
     rowsRange(0, n_);
     return;

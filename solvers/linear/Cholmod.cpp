@@ -154,7 +154,7 @@ struct CholmodSolver::Impl {
             int col = 3 * j + b;
             int k = fill[col]++;
             Ai[k] = 3 * i + a;
-            blockToValue[k] = 9 * s + 3 * b + a;  // column-major block storage
+            blockToValue[k] = 9 * s + 3 * a + b;  // row-major block storage
           }
       }
     rowStart = rs;
