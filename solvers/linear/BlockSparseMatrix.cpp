@@ -31,7 +31,7 @@ void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int,
     }
   }
   rowStart_[n_] = static_cast<int>(cols_.size());
-  // One double of padding: the vector kernels load each block column as four doubles.
+  // One double of padding: the vector kernels load each block row as four doubles.
   values_.assign(9 * cols_.size() + 1, 0.0);
 }
 

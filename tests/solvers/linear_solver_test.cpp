@@ -161,6 +161,24 @@ TEST(BlockSparseMatrix, PatternProductAndScale) {
   }
 }
 
+// The product reads four doubles per node triple and per block row: what lies beyond them (the
+// next node's first entry, the next row) must not reach the result. A chain of three nodes whose
+// last is not a number: the rows of the first node, which does not touch it, stay exact.
+TEST(BlockSparseMatrix, ANonFiniteNodeReachesOnlyTheRowsThatTouchIt) {
+  BlockSparseMatrix A;
+  A.setPattern(3, {{0, 1}, {1, 2}});
+  for (int s = 0; s < A.nonZeroBlocks(); ++s)
+    for (int k = 0; k < 9; ++k) A.block(s)(k / 3, k % 3) = 1 + s + 0.1 * k;
+  VectorXd x(9);
+  x << 1, 2, 3, 4, 5, 6, std::nan(""), 8, 9;
+  VectorXd y(9);
+  A.multiply(x, y);
+  const Eigen::MatrixXd D = A.toDense();
+  EXPECT_TRUE(y.head<3>().allFinite());
+  EXPECT_LT((y.head<3>() - D.topLeftCorner(3, 6) * x.head<6>()).norm(), 1e-13 * y.head<3>().norm());
+  EXPECT_FALSE(y.segment<3>(3).allFinite());  // node 1 couples to the NaN node
+}
+
 // constrainNodes: the rows and columns of the constrained nodes become identity rows/columns,
 // every other entry is untouched (exact).
 TEST(BlockSparseMatrix, ConstrainNodesGivesIdentityRowsAndColumns) {
