@@ -98,8 +98,8 @@ std::optional<Diverged> Simulation::step() {
     if (auto bad = pipeline_->detect(st, next, st.time)) return failed(bad);
   for (OdeSolver* s : solvers_)
     if (auto bad = s->step(st, st.time, dt, next)) return failed(bad);
-  if (pipeline_ && constraints_)
-    if (auto bad = constraints_->solve(st, *pipeline_, dt, next, tEnd)) return failed(bad);
+  if (constraints_)
+    if (auto bad = constraints_->solve(st, pipeline_, dt, next, tEnd)) return failed(bad);
   if (pipeline_) pipeline_->finish(st);
   for (Correction* c : corrections_) c->correct(st, tEnd, next);
   st.steps = next;

@@ -302,8 +302,9 @@ class CollisionPipeline : public Component, public Stateful {
 class ConstraintSolver {
  public:
   virtual ~ConstraintSolver() = default;
-  // Corrects the states of the bodies in contact; a failure stops the run like a divergence.
-  virtual std::optional<Diverged> solve(State& s, const CollisionPipeline& pipeline, double dt, int stepIndex,
+  // Corrects the states of the bodies in contact (pipeline: null in a scene without one) and of
+  // those held by bilateral constraints; a failure stops the run like a divergence.
+  virtual std::optional<Diverged> solve(State& s, const CollisionPipeline* pipeline, double dt, int stepIndex,
                                         double time) const = 0;
   virtual int lastIterations(const State& s) const = 0;
   virtual double lastResidual(const State& s) const = 0;

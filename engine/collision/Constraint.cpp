@@ -8,7 +8,8 @@
 //   slip  s = t . (p - p_start) - t . (sphere point displacement over the step)
 // with |lambda_t| <= mu lambda_n, lambda_t opposing the slip while sliding. Contacts between the
 // surfaces of two bodies (rigid bodies, deformable ones, fixed obstacles) have the same rows on the
-// relative motion of the two sides, and are solved together (solvePairs).
+// relative motion of the two sides, and are solved together (solvePairs), with the bilateral
+// constraints (BilateralLagrangianConstraint: three equality rows per pair of held points).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -292,6 +293,105 @@ class RigidConstraintCorrection : public Component {
   std::vector<const RigidMapping*> mappings_;
 };
 
+// SOFA's BilateralLagrangianConstraint (Vec3): pairs of points, one on each of two states, held
+// at a fixed offset at the end of every step: p2 - p1 = rest (zero unless rest_vector is given).
+// A point is a node of a body solved in its node, a point mapped from a body (RigidMapping from a
+// rigid body, a barycentric mapping from a deformable one), or a point of a state that nothing
+// moves (it stays where it is). The constraint's force lambda acts on point 2 and -lambda on
+// point 1; the constraint solver finds it together with the contacts between bodies.
+class BilateralConstraint : public Component {
+ public:
+  using Component::Component;
+  // One point of a pair: where it is and what moves it.
+  struct Point {
+    const MechanicalObject* at = nullptr;     // the state whose nodes place the point (where.nodes index it)
+    const MechanicalObject* body = nullptr;   // the deformable body it moves with (== at), if any
+    const RigidObject* rigid = nullptr;       // the rigid body it is fixed to (at: the mapped state), if any
+    Contact where;                            // the point as a weighted sum of at's nodes
+  };
+  void init() override {
+    if (scene().all<ConstraintSolver>().empty())
+      throw error("needs a constraint solver (GenericConstraintSolver) and FreeMotionAnimationLoop in the root node: "
+                  "without them nothing holds the points");
+    MechanicalObject* obj[2];
+    const char* attr[2] = {"object1", "object2"};
+    for (int k = 0; k < 2; ++k) {
+      Component* c = linkedComponent(attr[k]);
+      if (!c) throw error(attr[k], "is needed: the MechanicalObject (Vec3d) whose points are held");
+      obj[k] = dynamic_cast<MechanicalObject*>(c);
+      if (!obj[k])
+        throw error(attr[k], "links to '" + c->name() + "', a " + c->typeName() +
+                                 "; it must be a Vec3d MechanicalObject (for a rigid body, a point mapped from it by RigidMapping)");
+      scene().initComponent(*obj[k]);
+      for (const auto& m : obj[k]->node().components())
+        if (dynamic_cast<Mapping*>(m.get())) scene().initComponent(*m);
+    }
+    auto points = [](size_t n) { return std::to_string(n) + (n == 1 ? " point" : " points"); };
+    std::vector<int> first = linkedInts("first_point"), second = linkedInts("second_point");
+    if (first.empty() && second.empty()) {
+      if (obj[0]->size() != obj[1]->size())
+        throw error("first_point", "is needed: '" + obj[0]->name() + "' has " + points(obj[0]->size()) + " and '" +
+                                       obj[1]->name() + "' " + points(obj[1]->size()) + ", so they do not pair one to one");
+      for (int i = 0; i < obj[0]->size(); ++i) first.push_back(i);
+      second = first;
+    }
+    if (first.size() != second.size())
+      throw error("second_point", "has " + points(second.size()) + " and first_point " + points(first.size()) +
+                                      "; they pair one to one");
+    const std::vector<double> rest = attrs_.reals("rest_vector");
+    if (!rest.empty() && rest.size() != 3 * first.size())
+      throw error("rest_vector", "has " + std::to_string(rest.size()) + " numbers; it needs 3 per pair (" +
+                                     std::to_string(3 * first.size()) + ")");
+    for (size_t i = 0; i < first.size(); ++i) {
+      pairs_.push_back({attach(*obj[0], first[i], "first_point"), attach(*obj[1], second[i], "second_point")});
+      rest_.push_back(rest.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(rest[3 * i], rest[3 * i + 1], rest[3 * i + 2]));
+    }
+    active_ = attrs_.boolean("activate");
+    endTime_ = attrs_.real("endTime");
+  }
+  // Whether the constraint acts over a step that ends at `time`.
+  bool acts(double time) const { return active_ && (endTime_ < 0 || time <= endTime_); }
+  const std::vector<std::array<Point, 2>>& pairs() const { return pairs_; }
+  const Eigen::Vector3d& rest(int i) const { return rest_[i]; }
+
+ private:
+  Point attach(MechanicalObject& s, int i, const char* attr) const {
+    if (i < 0 || i >= s.size())
+      throw error(attr, "point " + std::to_string(i) + " is not a point of '" + s.name() + "' (" + std::to_string(s.size()) + " points)");
+    Point p;
+    p.at = &s;
+    p.where.count = 1;
+    p.where.nodes[0] = i;
+    p.where.w[0] = 1;
+    if (const auto* rm = dynamic_cast<const RigidMapping*>(s.mappedBy())) {
+      p.rigid = &rm->body();
+    } else if (const Component* by = s.mappedBy()) {
+      const auto* m = dynamic_cast<const Mapping*>(by);
+      std::vector<std::pair<int, double>> weights;
+      if (!m || !m->inputState() || !m->pointWeights(i, weights))
+        throw error(attr, "'" + s.name() + "' is mapped by " + by->typeName() + ", which does not give point " +
+                              std::to_string(i) + " as a weighted sum of a body's nodes");
+      if (weights.size() > static_cast<size_t>(kMaxContactNodes))
+        throw error(attr, "point " + std::to_string(i) + " of '" + s.name() + "' depends on more than " +
+                              std::to_string(kMaxContactNodes) + " nodes of its body");
+      p.at = p.body = m->inputState();
+      p.where.count = static_cast<int>(weights.size());
+      for (size_t k = 0; k < weights.size(); ++k) {
+        p.where.nodes[k] = weights[k].first;
+        p.where.w[k] = weights[k].second;
+      }
+    } else if (s.node().find<OdeSolver>()) {
+      p.body = &s;
+    }
+    return p;
+  }
+
+  std::vector<std::array<Point, 2>> pairs_;
+  std::vector<Eigen::Vector3d> rest_;
+  bool active_ = true;
+  double endTime_ = -1;
+};
+
 class GenericConstraintSolver : public Component, public ConstraintSolver, public Stateful {
  public:
   using Component::Component;
@@ -327,20 +427,28 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       scene().initComponent(*c);
       rigidCorrections_.push_back(c);
     }
+    for (BilateralConstraint* b : scene().all<BilateralConstraint>()) {
+      scene().initComponent(*b);
+      bilaterals_.push_back(b);
+    }
   }
 
-  std::optional<Diverged> solve(State& st, const CollisionPipeline& pipe, double h, int stepIndex,
+  std::optional<Diverged> solve(State& st, const CollisionPipeline* pipe, double h, int stepIndex,
                                 double time) const override {
     Live& l = stateIn<Live>(st);
     l.iterations = 0;
     l.residual = 0;
-    if (pipe.settings().response != ContactSettings::Response::Constraint) return std::nullopt;
-    const double mu = muOverride_ < 0 ? pipe.settings().mu : lcp_ && !(pipe.settings().mu > 0) ? 0.0 : muOverride_;
-    for (const SurfaceCollisionModel* surf : pipe.surfaces()) {
-      if (!surf->active() || surf->rigidBody() || surf->isStatic()) continue;
-      const auto& cs = surf->contacts(st);
-      if (std::none_of(cs.begin(), cs.end(), [](const Contact& c) { return c.sphere; })) continue;
-      if (auto bad = solveBody(st, *surf, deformableCorrection(*surf), mu, h, stepIndex, time)) return bad;
+    // Contacts take constraints under a constraint response; bilateral constraints always do.
+    if (pipe && pipe->settings().response != ContactSettings::Response::Constraint) pipe = nullptr;
+    double mu = 0;
+    if (pipe) {
+      mu = muOverride_ < 0 ? pipe->settings().mu : lcp_ && !(pipe->settings().mu > 0) ? 0.0 : muOverride_;
+      for (const SurfaceCollisionModel* surf : pipe->surfaces()) {
+        if (!surf->active() || surf->rigidBody() || surf->isStatic()) continue;
+        const auto& cs = surf->contacts(st);
+        if (std::none_of(cs.begin(), cs.end(), [](const Contact& c) { return c.sphere; })) continue;
+        if (auto bad = solveBody(st, *surf, deformableCorrection(surf->mstate(), *surf), mu, h, stepIndex, time)) return bad;
+      }
     }
     return solvePairs(st, pipe, mu, h, stepIndex, time);
   }
@@ -353,71 +461,108 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       if (c->typeName() == "FreeMotionAnimationLoop") return true;
     return false;
   }
-  const ConstraintCorrection& deformableCorrection(const SurfaceCollisionModel& surf) const {
+  // The correction of deformable body `body`; `who` (a surface or a bilateral constraint) names the error.
+  const ConstraintCorrection& deformableCorrection(const MechanicalObject& body, const Component& who) const {
     for (ConstraintCorrection* c : corrections_)
-      if (&c->mstate() == &surf.mstate()) return *c;
-    throw surf.error("constraint contact needs a constraint correction in the node of '" + surf.mstate().name() +
-                     "' (PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or UncoupledConstraintCorrection)");
+      if (&c->mstate() == &body) return *c;
+    throw who.error("constraints on '" + body.name() + "' need a constraint correction in its node "
+                    "(PrecomputedConstraintCorrection, LinearSolverConstraintCorrection or UncoupledConstraintCorrection)");
   }
-  // The correction of the rigid body a surface is on, or null when nothing moves the body.
-  const RigidConstraintCorrection* rigidCorrection(const SurfaceCollisionModel& surf) const {
-    const RigidObject& b = *surf.rigidBody();
+  // The correction of rigid body b, or null when nothing moves the body.
+  const RigidConstraintCorrection* rigidCorrection(const RigidObject& b, const Component& who) const {
     for (RigidConstraintCorrection* c : rigidCorrections_)
       if (&c->body() == &b) return c->moves() ? c : nullptr;
     if (b.driven || !(b.mass > 0) || b.prescribedVelocity) return nullptr;
-    throw surf.error("constraint contact with rigid body '" + b.name() + "' needs UncoupledConstraintCorrection in its node");
+    throw who.error("constraints on rigid body '" + b.name() + "' need UncoupledConstraintCorrection in its node");
   }
 
-  // One side of a contact between two bodies: the body that moves under it (none for a fixed
-  // surface or a driven body), how the contact point follows it, and the sign of the force on it.
+  // One side of a constraint between two bodies (a contact, or a pair of held points): the body
+  // that moves under it (none for a fixed surface, a driven body or a state nothing moves), how the
+  // point follows it, and the sign of the force on it.
   struct Side {
-    const SurfaceCollisionModel* surf = nullptr;
-    Contact* c = nullptr;  // this side's own record of the contact (the pair's, or its mirror)
+    const SurfaceCollisionModel* surf = nullptr;  // contacts: the surface
+    const MechanicalObject* at = nullptr;         // the state whose nodes place the point
+    Contact* c = nullptr;  // this side's record: the contact's (the pair's, or its mirror), or the held point
     const ConstraintCorrection* deformable = nullptr;
     const RigidConstraintCorrection* rigid = nullptr;
-    Eigen::Vector3d arm = Eigen::Vector3d::Zero();  // rigid: contact point - body origin
+    Eigen::Vector3d arm = Eigen::Vector3d::Zero();  // rigid: point - body origin
     double sign = 1;
     const void* key() const { return deformable ? static_cast<const void*>(deformable) : static_cast<const void*>(rigid); }
+    Eigen::Vector3d point(const State& st) const { return c->point(at->x(st)); }
+  };
+  // A contact's two sides (normal and friction rows), or a held pair's (three equality rows).
+  struct Pair {
+    std::array<Side, 2> side;
+    const BilateralConstraint* bilateral = nullptr;
+    int index = 0;  // the bilateral constraint's pair
   };
 
-  // Contacts between the surfaces of two bodies (a vertex of one against a feature of the other),
-  // solved together: a body touching several others couples their contacts. The pair's force
-  // lambda pushes the first side along -n and the second along +n; the Delassus operator sums each
-  // moving body's compliance between the contact points (a rigid body's C(p, q) = J_p C J_q^T with
+  // Contacts between the surfaces of two bodies (a vertex of one against a feature of the other)
+  // and bilateral constraints, solved together: a body touching several others couples their
+  // rows. A contact's force lambda pushes the first side along -n and the second along +n; a held
+  // pair's pulls point 2 by +lambda and point 1 by -lambda. The Delassus operator sums each moving
+  // body's compliance between the points (a rigid body's C(p, q) = J_p C J_q^T with
   // J_p = [I, -[p - origin]x]).
-  std::optional<Diverged> solvePairs(State& st, const CollisionPipeline& pipe, double mu, double h, int stepIndex,
+  std::optional<Diverged> solvePairs(State& st, const CollisionPipeline* pipe, double mu, double h, int stepIndex,
                                      double time) const {
-    const auto& surfaces = pipe.surfaces();
-    auto indexOf = [&](const SurfaceCollisionModel* m) {
-      return static_cast<int>(std::find(surfaces.begin(), surfaces.end(), m) - surfaces.begin());
+    std::vector<Pair> pairs;
+    auto attach = [&](Side& sd, const MechanicalObject* body, const RigidObject* rigid, const Component& who) {
+      if (rigid) {
+        sd.rigid = rigidCorrection(*rigid, who);
+        if (sd.rigid) sd.arm = sd.point(st) - sd.rigid->body().live(st).p;
+      } else if (body) {
+        sd.deformable = &deformableCorrection(*body, who);
+      }
     };
-    std::vector<std::array<Side, 2>> pairs;
-    for (int si = 0; si < static_cast<int>(surfaces.size()); ++si) {
-      const SurfaceCollisionModel* a = surfaces[si];
-      if (!a->active()) continue;
-      auto& cs = a->contacts(st);
-      for (int ci = 0; ci < static_cast<int>(cs.size()); ++ci) {
-        Contact& c = cs[ci];
-        if (!c.partner) continue;
-        const int pi = indexOf(c.partner);
-        if (std::make_pair(pi, c.mirror) < std::make_pair(si, ci)) continue;  // the pair is taken from its other side
-        std::array<Side, 2> p;
-        p[0].surf = a;
-        p[0].c = &c;
-        p[1].surf = c.partner;
-        p[1].c = &c.partner->contacts(st)[c.mirror];
-        p[1].sign = -1;
-        for (Side& sd : p) {
-          if (sd.surf->isStatic()) continue;
-          if (sd.surf->rigidBody()) {
-            sd.rigid = rigidCorrection(*sd.surf);
-            if (sd.rigid)
-              sd.arm = sd.c->point(sd.surf->mstate().x(st)) - sd.rigid->body().live(st).p;
-          } else {
-            sd.deformable = &deformableCorrection(*sd.surf);
+    if (pipe) {
+      const auto& surfaces = pipe->surfaces();
+      auto indexOf = [&](const SurfaceCollisionModel* m) {
+        return static_cast<int>(std::find(surfaces.begin(), surfaces.end(), m) - surfaces.begin());
+      };
+      for (int si = 0; si < static_cast<int>(surfaces.size()); ++si) {
+        const SurfaceCollisionModel* a = surfaces[si];
+        if (!a->active()) continue;
+        auto& cs = a->contacts(st);
+        for (int ci = 0; ci < static_cast<int>(cs.size()); ++ci) {
+          Contact& c = cs[ci];
+          if (!c.partner) continue;
+          const int pi = indexOf(c.partner);
+          if (std::make_pair(pi, c.mirror) < std::make_pair(si, ci)) continue;  // the pair is taken from its other side
+          Pair p;
+          p.side[0].surf = a;
+          p.side[0].c = &c;
+          p.side[1].surf = c.partner;
+          p.side[1].c = &c.partner->contacts(st)[c.mirror];
+          p.side[1].sign = -1;
+          for (Side& sd : p.side) {
+            sd.at = &sd.surf->mstate();
+            if (!sd.surf->isStatic()) attach(sd, &sd.surf->mstate(), sd.surf->rigidBody(), *sd.surf);
           }
+          if (p.side[0].key() || p.side[1].key()) pairs.push_back(p);
         }
-        if (p[0].key() || p[1].key()) pairs.push_back(p);
+      }
+    }
+    // Held points: their records live for this solve only.
+    size_t held = 0;
+    for (const BilateralConstraint* b : bilaterals_)
+      if (b->acts(time)) held += 2 * b->pairs().size();
+    std::vector<Contact> points;
+    points.reserve(held);
+    for (const BilateralConstraint* b : bilaterals_) {
+      if (!b->acts(time)) continue;
+      for (int i = 0; i < static_cast<int>(b->pairs().size()); ++i) {
+        Pair p;
+        p.bilateral = b;
+        p.index = i;
+        p.side[1].sign = -1;
+        for (int k = 0; k < 2; ++k) {
+          const BilateralConstraint::Point& pt = b->pairs()[i][k];
+          points.push_back(pt.where);
+          p.side[k].c = &points.back();
+          p.side[k].at = pt.at;
+          attach(p.side[k], pt.body, pt.rigid, *b);
+        }
+        if (p.side[0].key() || p.side[1].key()) pairs.push_back(p);
       }
     }
     if (pairs.empty()) return std::nullopt;
@@ -426,7 +571,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     std::unordered_map<const void*, ConstraintCorrection::Live*> deformableLive;
     std::unordered_map<const void*, Eigen::Matrix<double, 6, 6>> rigidC;
     for (const auto& p : pairs)
-      for (const Side& sd : p) {
+      for (const Side& sd : p.side) {
         if (sd.deformable && !deformableLive.count(sd.key())) deformableLive[sd.key()] = &sd.deformable->prepare(st, h);
         if (sd.rigid && !rigidC.count(sd.key())) rigidC[sd.key()] = sd.rigid->compliance(st, h);
       }
@@ -445,18 +590,26 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         for (int b = 0; b < v.c->count; ++b) r += u.c->w[a] * v.c->w[b] * u.deformable->block(cl, u.c->nodes[a], v.c->nodes[b]);
       return r;
     };
-    // Rows [-n; t1; t2] of the first side's normal; free gap and slip.
+    // Contacts: rows [-n; t1; t2] of the first side's normal, free gap and slip. Held pairs: rows
+    // -I (force -lambda on point 1), free value p2 - p1 - rest.
     std::vector<Eigen::Matrix3d> R(m);
     std::vector<Eigen::Vector3d> dfree(m), lambda(m, Eigen::Vector3d::Zero());
+    std::vector<char> equality(m, 0);
     for (int i = 0; i < m; ++i) {
-      const Side &A = pairs[i][0], &B = pairs[i][1];
+      const Side &A = pairs[i].side[0], &B = pairs[i].side[1];
+      if (const BilateralConstraint* b = pairs[i].bilateral) {
+        equality[i] = 1;
+        R[i] = -Eigen::Matrix3d::Identity();
+        dfree[i] = B.point(st) - A.point(st) - b->rest(pairs[i].index);
+        continue;
+      }
       const Eigen::Vector3d& n = A.c->n;
       const Eigen::Vector3d t1 = n.unitOrthogonal(), t2 = n.cross(t1);
       R[i].row(0) = -n.transpose();
       R[i].row(1) = t1.transpose();
       R[i].row(2) = t2.transpose();
-      const Eigen::Vector3d moveA = A.c->point(A.surf->mstate().x(st)) - A.c->p0;
-      const Eigen::Vector3d moveB = B.c->point(B.surf->mstate().x(st)) - B.c->p0;
+      const Eigen::Vector3d moveA = A.point(st) - A.c->p0;
+      const Eigen::Vector3d moveB = B.point(st) - B.c->p0;
       const double gap = A.surf->gapAt(st, *A.c, A.surf->mstate().x(st));
       const double slip = slipShare(A.c->gap0, gap, moveA.norm() + moveB.norm());
       dfree[i] = Eigen::Vector3d(gap, slip * t1.dot(moveA - moveB), slip * t2.dot(moveA - moveB));
@@ -465,18 +618,18 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     for (int i = 0; i < m; ++i)
       for (int j = 0; j < m; ++j) {
         Eigen::Matrix3d Cij = Eigen::Matrix3d::Zero();
-        for (const Side& u : pairs[i])
-          for (const Side& v : pairs[j])
+        for (const Side& u : pairs[i].side)
+          for (const Side& v : pairs[j].side)
             if (u.key() && u.key() == v.key()) Cij += u.sign * v.sign * C(u, v);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
-    gaussSeidel(l, W, dfree, mu, lambda);
+    gaussSeidel(l, W, dfree, mu, lambda, equality);
     // Forces on each side, then every moving body corrected once.
     std::unordered_map<const void*, Eigen::Matrix3Xd> nodeForces;
     std::unordered_map<const void*, Eigen::Matrix<double, 6, 1>> wrenches;
     for (int i = 0; i < m; ++i) {
       const Eigen::Vector3d f = R[i].transpose() * lambda[i];
-      for (const Side& sd : pairs[i]) {
+      for (const Side& sd : pairs[i].side) {
         Contact& rec = *sd.c;
         rec.force = sd.sign * f;
         rec.active = lambda[i][0] > 0;
@@ -485,7 +638,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
           it->second.head<3>() += rec.force;
           it->second.tail<3>() += sd.arm.cross(rec.force);
         } else if (sd.deformable) {
-          auto [it, fresh] = nodeForces.try_emplace(sd.key(), Eigen::Matrix3Xd::Zero(3, sd.surf->mstate().size()));
+          auto [it, fresh] = nodeForces.try_emplace(sd.key(), Eigen::Matrix3Xd::Zero(3, sd.at->size()));
           for (int a = 0; a < sd.c->count; ++a) it->second.col(sd.c->nodes[a]) += sd.c->w[a] * rec.force;
         }
       }
@@ -496,7 +649,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     bool finite = true;
     std::string failed;
     for (const auto& p : pairs)
-      for (const Side& sd : p) {
+      for (const Side& sd : p.side) {
         if (sd.rigid && wrenches.count(sd.key())) {
           RigidObject::Live& b = sd.rigid->body().live(st);
           keptRigid.emplace_back(sd.rigid, b);
@@ -508,7 +661,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
           }
         } else if (sd.deformable && nodeForces.count(sd.key())) {
           ConstraintCorrection::Live& cl = *deformableLive.at(sd.key());
-          MechanicalObject::Live& s = sd.surf->mstate().live(st);
+          MechanicalObject::Live& s = sd.at->live(st);
           keptDeformable.push_back({&s, {s.x, s.v}});
           Eigen::Matrix3Xd dx;
           sd.deformable->apply(cl, nodeForces.at(sd.key()), dx);
@@ -517,7 +670,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
           nodeForces.erase(sd.key());
           if (!s.x.allFinite() || !s.v.allFinite()) {
             finite = false;
-            failed = sd.surf->mstate().name();
+            failed = sd.at->name();
           }
         }
       }
@@ -583,8 +736,9 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
 
   // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by more
   // than tolerance x the largest force.
+  // Rows flagged in `equality` (held points) take the force that zeroes their three values.
   void gaussSeidel(Live& l, const Eigen::MatrixXd& W, const std::vector<Eigen::Vector3d>& dfree, double mu,
-                   std::vector<Eigen::Vector3d>& lambda) const {
+                   std::vector<Eigen::Vector3d>& lambda, const std::vector<char>& equality = {}) const {
     const int m = static_cast<int>(dfree.size());
     double last = 0;
     for (int it = 0; it < maxIt_; ++it) {
@@ -593,6 +747,16 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         Eigen::Vector3d d = dfree[i];
         for (int j = 0; j < m; ++j) d += W.block<3, 3>(3 * i, 3 * j) * lambda[j];
         const Eigen::Matrix3d Wii = W.block<3, 3>(3 * i, 3 * i);
+        if (!equality.empty() && equality[i]) {
+          if (!(Wii.trace() > 0)) continue;  // neither point can move
+          // Least squares: a point held along some direction only (a partly fixed body) takes
+          // the force it can act with.
+          const Eigen::Vector3d li = lambda[i] - Wii.completeOrthogonalDecomposition().solve(d);
+          change = std::max(change, (li - lambda[i]).norm());
+          scale = std::max(scale, li.norm());
+          lambda[i] = li;
+          continue;
+        }
         if (!(Wii(0, 0) > 0)) continue;  // nothing the contact could move (fixed nodes, a held body)
         Eigen::Vector3d li = lambda[i];
         // Normal: make the gap zero if that pushes, else release.
@@ -687,6 +851,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   bool lcp_ = false;
   std::vector<ConstraintCorrection*> corrections_;
   std::vector<RigidConstraintCorrection*> rigidCorrections_;
+  std::vector<BilateralConstraint*> bilaterals_;
 };
 
 class FreeMotionAnimationLoop : public Component {
@@ -718,11 +883,14 @@ void registerConstraintContact(Registry& r) {
   {
     ComponentSpec s;
     s.name = "GenericConstraintSolver";
-    s.aliases = {"LCPConstraintSolver", "BlockGaussSeidelConstraintSolver", "ProjectedGaussSeidelConstraintSolver"};
+    s.aliases = {"LCPConstraintSolver", "BlockGaussSeidelConstraintSolver", "ProjectedGaussSeidelConstraintSolver",
+                 "UnbuiltGaussSeidelConstraintSolver", "NNCGConstraintSolver"};
     s.category = "collision";
-    s.doc = "Projected Gauss-Seidel on the contacts' Delassus operator (3x3 block per contact pair): normal force "
-            ">= 0 with zero gap when pushing, friction in the Coulomb cone. Stops when no contact force changes by "
-            "more than tolerance x the largest force, or after maxIterations.";
+    s.doc = "Projected Gauss-Seidel on the Delassus operator of the contacts and bilateral constraints (3x3 block "
+            "per contact pair or held pair of points): normal force >= 0 with zero gap when pushing, friction in the "
+            "Coulomb cone, held points together. Stops when no force changes by more than tolerance x the largest "
+            "force, or after maxIterations. SOFA's other solvers of the same problem (UnbuiltGaussSeidel, NNCG) take "
+            "this one: they differ in how they iterate, not in the forces they converge to.";
     s.add(AttrSpec::integer("maxIterations").alias("maxIt").def("1000").atLeast(1).help("Gauss-Seidel sweeps at most"));
     s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help("relative change of the contact forces to stop at"));
     s.add(AttrSpec::real("mu").atLeast(0).help(
@@ -741,6 +909,34 @@ void registerConstraintContact(Registry& r) {
     s.add(AttrSpec::string("resolutionMethod").def("ProjectedGaussSeidel").help("accepted for SOFA scenes; projected Gauss-Seidel is used"));
     s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
     s.factory = [](BuildContext& c) { return std::make_unique<GenericConstraintSolver>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "BilateralLagrangianConstraint";
+    s.aliases = {"BilateralInteractionConstraint"};
+    s.category = "collision";
+    s.doc = "Holds pairs of points of two states together (SOFA's attachment by Lagrange multipliers): at the end "
+            "of every step point 2 - point 1 = rest_vector (zero unless given), solved by the constraint solver with "
+            "the contacts (needs FreeMotionAnimationLoop, a constraint solver, and a constraint correction in the node "
+            "of every body that moves). A point is a node of a body, a point mapped from one (RigidMapping, "
+            "BarycentricMapping), or a point of a state nothing moves, which stays where it is.";
+    s.add(AttrSpec::choice("template", {"Vec3d", "Vec3", "Vec3f"}).def("Vec3d").help(
+        "the points' type (Rigid3d is not handled: hold points mapped from the rigid bodies)"));
+    s.add(AttrSpec::link("object1").help("the MechanicalObject of the first points"));
+    s.add(AttrSpec::link("object2").help("the MechanicalObject of the second points"));
+    s.add(AttrSpec::ints("first_point").atLeast(0).linked().help(
+        "the points of object1 (with second_point empty too: every point, paired with the same index)"));
+    s.add(AttrSpec::ints("second_point").atLeast(0).linked().help("the points of object2, one per first point"));
+    s.add(AttrSpec::reals("rest_vector").unit(Dimension::length()).help(
+        "point 2 - point 1 to hold, three numbers per pair (default: the points coincide)"));
+    s.add(AttrSpec::boolean("activate").def("true").help("false: the constraint does nothing"));
+    s.add(AttrSpec::real("endTime").def("-1").help("the constraint stops acting after this time (negative: never)"));
+    s.add(AttrSpec::boolean("keepOrientationDifference").def("false").help("accepted for SOFA scenes (rigid templates only)"));
+    s.add(AttrSpec::real("numericalTolerance").def("0.0001").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::integer("group").def("0").help("accepted for SOFA scenes; one solver takes every constraint"));
+    s.add(AttrSpec::integer("constraintIndex").def("0").help("accepted for SOFA scenes"));
+    s.factory = [](BuildContext& c) { return std::make_unique<BilateralConstraint>(c); };
     r.add(std::move(s));
   }
   const char* corr[3][2] = {

@@ -49,7 +49,13 @@ void MechanicalObject::init() {
         }
       }
   }
-  if (xInit.cols() == 0) throw error("has no positions: set `position` or put a loader or grid topology in its node");
+  if (xInit.cols() == 0) {
+    // SOFA's default: one point at the origin (moved by the transform attributes), e.g. the
+    // anchor of an attachment in a node without a mesh.
+    xInit = Eigen::Matrix3Xd::Zero(3, 1);
+    scene().addNote(loc().str() + ": note: MechanicalObject '" + name() +
+                    "' has no positions (no `position`, loader or topology): one point at the origin, as in SOFA");
+  }
   applyPlacement(attrs_, xInit);
   x0 = xInit;
   if (attrs_.isSet("rest_position")) {
