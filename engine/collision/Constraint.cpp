@@ -42,6 +42,7 @@ class ConstraintCorrection : public Component, public Stateful {
       if (attrs_.isSet(rigidOnly))
         throw error(rigidOnly, "is not used for a deformable body: its compliance comes from the step's matrix and the "
                                "ODE solver's factors");
+    regularization_ = attrs_.real("regularizationTerm");
     mode_ = t == "UncoupledConstraintCorrection" ? Mode::Uncoupled
             : t == "LinearSolverConstraintCorrection" || t == "GenericConstraintCorrection" ? Mode::LinearSolver
                                                                                             : Mode::Precomputed;
@@ -64,6 +65,8 @@ class ConstraintCorrection : public Component, public Stateful {
   }
 
   MechanicalObject& mstate() const { return sys_->state(); }
+  // Added to the compliance of every constraint row on this body (SOFA's regularizationTerm).
+  double regularization() const { return regularization_; }
 
   // Per simulation: the step response, the step matrix and its factorisation when the compliance
   // follows the state (or another step size than the shared one), and cached columns of C. All of
@@ -188,6 +191,7 @@ class ConstraintCorrection : public Component, public Stateful {
   }
 
   Mode mode_ = Mode::Precomputed;
+  double regularization_ = 0;
   std::unique_ptr<MechanicalSystem> sys_;
   OdeSolver* ode_ = nullptr;
   double restDt_ = 0;
@@ -206,6 +210,7 @@ class RigidConstraintCorrection : public Component {
   void init() override {
     body_ = &contextRigid(*this, "mstate");
     scene().initComponent(*body_);
+    regularization_ = attrs_.real("regularizationTerm");
     // The solver initialises the body's node, this component included: its step response is read
     // when the constraint solver runs (none is needed for a body nothing moves).
     for (const Node* n = &body_->node(); n && !ode_; n = n->parent()) ode_ = n->find<OdeSolver>();
@@ -226,6 +231,8 @@ class RigidConstraintCorrection : public Component {
     }
   }
   RigidObject& body() const { return *body_; }
+  // Added to the compliance of every constraint row on this body (SOFA's regularizationTerm).
+  double regularization() const { return regularization_; }
 
   // Whether anything moves the body: it is integrated (a mass, not driven, no prescribed velocity).
   bool moves() const { return !body_->driven && body_->mass > 0 && !body_->prescribedVelocity; }
@@ -287,6 +294,7 @@ class RigidConstraintCorrection : public Component {
 
   RigidObject* body_ = nullptr;
   OdeSolver* ode_ = nullptr;
+  double regularization_ = 0;
   bool given_ = false;
   double linear_ = 0;
   Eigen::Matrix3d rotational_ = Eigen::Matrix3d::Identity();
@@ -412,6 +420,8 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   void init() override {
     maxIt_ = static_cast<int>(attrs_.integer("maxIterations"));
     tol_ = attrs_.real("tolerance");
+    regularization_ = attrs_.real("regularizationTerm");
+    svdRegularization_ = attrs_.boolean("useSVDForRegularization");
     // SOFA's LCPConstraintSolver applies its own mu (0.6 unless given) to every contact that has
     // friction at all (a response mu above 0); GenericConstraintSolver's given mu replaces the response's.
     lcp_ = typeName() == "LCPConstraintSolver";
@@ -489,6 +499,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     double sign = 1;
     const void* key() const { return deformable ? static_cast<const void*>(deformable) : static_cast<const void*>(rigid); }
     Eigen::Vector3d point(const State& st) const { return c->point(at->x(st)); }
+    double regularization() const { return deformable ? deformable->regularization() : rigid ? rigid->regularization() : 0.0; }
   };
   // A contact's two sides (normal and friction rows), or a held pair's (three equality rows).
   struct Pair {
@@ -623,6 +634,9 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
             if (u.key() && u.key() == v.key()) Cij += u.sign * v.sign * C(u, v);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
+    for (int i = 0; i < m; ++i)  // R is orthonormal: a side's eps I stays eps I in the rows
+      for (const Side& u : pairs[i].side) W.block<3, 3>(3 * i, 3 * i).diagonal().array() += u.regularization();
+    regularize(W);
     gaussSeidel(l, W, dfree, mu, lambda, equality);
     // Forces on each side, then every moving body corrected once.
     std::unordered_map<const void*, Eigen::Matrix3Xd> nodeForces;
@@ -736,6 +750,21 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
 
   // Projected Gauss-Seidel: each contact's local problem in turn, until no force changes by more
   // than tolerance x the largest force.
+  // The solver's regularisation: eps I added to W, or (useSVDForRegularization) W's eigenvalues
+  // below eps raised to eps, which leaves a well-posed problem alone. Either makes redundant rows
+  // (more held points than the bodies' freedoms) solvable, at the price of holding them a little
+  // less exactly.
+  void regularize(Eigen::MatrixXd& W) const {
+    if (!(regularization_ > 0)) return;
+    if (!svdRegularization_) {
+      W.diagonal().array() += regularization_;
+      return;
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(W);
+    const Eigen::VectorXd lifted = eig.eigenvalues().cwiseMax(regularization_);
+    W = eig.eigenvectors() * lifted.asDiagonal() * eig.eigenvectors().transpose();
+  }
+
   // Rows flagged in `equality` (held points) take the force that zeroes their three values.
   void gaussSeidel(Live& l, const Eigen::MatrixXd& W, const std::vector<Eigen::Vector3d>& dfree, double mu,
                    std::vector<Eigen::Vector3d>& lambda, const std::vector<char>& equality = {}) const {
@@ -818,6 +847,8 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
           for (int b = 0; b < cs[j]->count; ++b) Cij += cs[i]->w[a] * cs[j]->w[b] * cc.block(ccl, cs[i]->nodes[a], cs[j]->nodes[b]);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
+    W.diagonal().array() += cc.regularization();
+    regularize(W);
     gaussSeidel(l, W, dfree, mu, lambda);
     // Correct the free motion: forces on the nodes, displacement C F, velocity to match.
     Eigen::Matrix3Xd F = Eigen::Matrix3Xd::Zero(3, body.size()), dx;
@@ -846,6 +877,8 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   }
 
   int maxIt_ = 1000;
+  double regularization_ = 0;
+  bool svdRegularization_ = false;
   double tol_ = 1e-8;
   double muOverride_ = -1;
   bool lcp_ = false;
@@ -908,6 +941,10 @@ void registerConstraintContact(Registry& r) {
     s.add(AttrSpec::boolean("computeConstraintForces").def("true").help("accepted for SOFA scenes; forces are always computed"));
     s.add(AttrSpec::string("resolutionMethod").def("ProjectedGaussSeidel").help("accepted for SOFA scenes; projected Gauss-Seidel is used"));
     s.add(AttrSpec::boolean("printLog").def("false").help("accepted for SOFA scenes"));
+    s.add(AttrSpec::real("regularizationTerm").def("0").atLeast(0).help(
+        "added to the diagonal of the constraint compliance W (for redundant bilateral constraints)"));
+    s.add(AttrSpec::boolean("useSVDForRegularization").def("false").help(
+        "with regularizationTerm: raise W's eigenvalues below it to it, instead of adding it to every one"));
     s.factory = [](BuildContext& c) { return std::make_unique<GenericConstraintSolver>(c); };
     r.add(std::move(s));
   }
@@ -968,6 +1005,8 @@ void registerConstraintContact(Registry& r) {
         "rigid bodies only, accepted for SOFA scenes: the compliance always follows the solver's step (a force over "
         "the step moves the body by h^2 / (1 + h rayleighMass) M^-1 F)"));
     s.add(AttrSpec::link("mstate").help("the body (default: the one in the node)"));
+    s.add(AttrSpec::real("regularizationTerm").def("0").atLeast(0).help(
+        "added to the compliance of every constraint row on this body"));
     s.factory = [](BuildContext& ctx) -> std::unique_ptr<Component> {
       if (ctx.node().find<RigidObject>() && !ctx.node().find<MechanicalObject>()) return std::make_unique<RigidConstraintCorrection>(ctx);
       return std::make_unique<ConstraintCorrection>(ctx);

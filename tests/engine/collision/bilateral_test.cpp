@@ -165,3 +165,33 @@ TEST(BilateralConstraint, NeedsAConstraintSolver) {
     EXPECT_NE(std::string(e.what()).find("constraint solver"), std::string::npos) << e.what();
   }
 }
+
+// A particle held on two anchors 2 apart (no gravity, at rest 0.6 off their midpoint) cannot meet
+// both: without regularisation the problem has no solution. With the solver's regularizationTerm
+// eps added to W = c [I I; I I] (c = h^2 / m, the particle's compliance) the step ends at
+// mid + (p0 - mid) eps / (2 c + eps); with useSVDForRegularization only W's zero eigenvalues are
+// raised, and the particle lands on the midpoint.
+TEST(BilateralConstraint, RegularisationSettlesConflictingConstraints) {
+  auto run = [](const std::string& solverAttrs) {
+    const std::string text = R"(<Node name="root" dt="0.01" gravity="0 0 0">
+  <FreeMotionAnimationLoop/>
+  <GenericConstraintSolver tolerance="1e-14" maxIterations="10000" )" + solverAttrs + R"(/>
+  <Node name="anchors">
+    <MechanicalObject name="dofs" position="-1 0 0  1 0 0"/>
+  </Node>)" + particle("p", 1.0, "0.6 0 0") + R"(
+  <BilateralLagrangianConstraint object1="@anchors/dofs" object2="@p/dofs" first_point="0 1" second_point="0 0"/>
+</Node>)";
+    auto scene = load(text);
+    Simulation sim(*scene);
+    EXPECT_FALSE(sim.step());
+    for (MechanicalObject* m : scene->all<MechanicalObject>())
+      if (m->node().name() == "p") return Eigen::Vector3d(m->x(sim.state()).col(0));
+    return Eigen::Vector3d(Eigen::Vector3d::Constant(NAN));
+  };
+  const double c = 0.01 * 0.01 / 1.0, eps = 1e-4;
+  const Eigen::Vector3d added = run(R"(regularizationTerm="1e-4")");
+  EXPECT_NEAR(added.x(), 0.6 * eps / (2 * c + eps), 1e-9);
+  EXPECT_NEAR(added.tail<2>().norm(), 0, 1e-12);
+  const Eigen::Vector3d svd = run(R"(regularizationTerm="1e-4" useSVDForRegularization="true")");
+  EXPECT_NEAR(svd.norm(), 0, 1e-9);
+}
