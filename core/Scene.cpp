@@ -378,7 +378,13 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
       Node* next = nullptr;
       for (const auto& ch : node->children())
         if (ch->name() == parts[i]) next = ch.get();
-      if (!next) throw fail("no node '" + parts[i] + "' in " + node->path());
+      // As SOFA's lookup, a relative path whose first node is no child of this one starts from
+      // the nearest node above that has such a child.
+      if (!next && i == 0 && !absolute)
+        for (Node* up = node->parent(); up && !next; up = up->parent())
+          for (const auto& ch : up->children())
+            if (ch->name() == parts[i]) next = ch.get();
+      if (!next) throw fail("no node '" + parts[i] + "' in " + node->path() + (i == 0 && !absolute ? " or above it" : ""));
       node = next;
     }
   }

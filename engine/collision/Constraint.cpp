@@ -324,8 +324,16 @@ class BilateralConstraint : public Component {
     MechanicalObject* obj[2];
     const char* attr[2] = {"object1", "object2"};
     for (int k = 0; k < 2; ++k) {
-      Component* c = linkedComponent(attr[k]);
-      if (!c) throw error(attr[k], "is needed: the MechanicalObject (Vec3d) whose points are held");
+      if (!attrs_.isSet(attr[k])) throw error(attr[k], "is needed: the MechanicalObject (Vec3d) whose points are held");
+      // SOFA's link to a state may name its node.
+      Component* c = nullptr;
+      const Node* n = linkedNode(node(), attrs_.get(attr[k]).text);
+      if (n && n->find<MechanicalObject>()) {
+        c = n->find<MechanicalObject>();
+        scene().initComponent(*c);
+      } else {
+        c = linkedComponent(attr[k]);
+      }
       obj[k] = dynamic_cast<MechanicalObject*>(c);
       if (!obj[k])
         throw error(attr[k], "links to '" + c->name() + "', a " + c->typeName() +

@@ -236,6 +236,8 @@ class BoxROI : public Component {
       X = contextState(*this).x0;  // SOFA tests the rest positions
     }
     indices_ = pointsInBoxes(X, attrs_.reals("box"));
+    for (int i : indices_)
+      for (int k = 0; k < 3; ++k) pointsIn_.push_back(X(k, i));
     if (indices_.empty() && attrs_.boolean("strict"))
       throw error("box", "selects no point (set strict=\"false\" to allow an empty selection)");
     // Triangles given: those with all three vertices inside (SOFA's strict rule), by index and
@@ -264,6 +266,7 @@ class BoxROI : public Component {
   }
   bool field(const std::string& name, FieldValue& out) const override {
     if (name == "indices") out.values.assign(indices_.begin(), indices_.end());
+    else if (name == "pointsInROI") out.values = pointsIn_;
     else if (name == "triangleIndices" && attrs_.isSet("triangles")) out.values = triangleIndices_;
     else if (name == "trianglesInROI" && attrs_.isSet("triangles")) out.values.assign(trianglesIn_.begin(), trianglesIn_.end());
     else return false;
@@ -272,6 +275,7 @@ class BoxROI : public Component {
 
  private:
   std::vector<int> indices_;
+  std::vector<double> pointsIn_;  // the selected points' positions, x y z each
   std::vector<double> triangleIndices_;
   std::vector<int> trianglesIn_;
 };
@@ -531,7 +535,7 @@ void registerConstraints(Registry& r) {
     s.name = "BoxROI";
     s.category = "engine";
     s.doc = "Selects the nodes inside one or more axis-aligned boxes (bounds inclusive, rest positions); output "
-            "field `indices`.";
+            "fields `indices` and `pointsInROI` (their positions).";
     s.add(AttrSpec::reals("box").def("0 0 0 1 1 1").multipleOf(6).unit(Dimension::length()).help("xmin ymin zmin xmax ymax zmax, repeated for several boxes"));
     s.add(AttrSpec::reals("position").multipleOf(3).unit(Dimension::length()).linked().help("points to test (default: rest positions of the node's MechanicalObject)"));
     s.add(AttrSpec::boolean("strict").def("false").help("fail if the box selects nothing"));

@@ -121,6 +121,10 @@ TEST(SceneGraph, LinksResolveByEveryPathForm) {
   EXPECT_EQ(&s->resolve(from, "@parent", loc, "t"), &from);         // in its own node first
   // From the parent node, a child path.
   EXPECT_EQ(&s->resolve(bottom, "@inner/parent", loc, "t"), &from);
+  // A relative path whose first node is no child here starts from the nearest node above that
+  // has it (SOFA finds "@body/dofs" from inside body's subtree too).
+  EXPECT_EQ(&s->resolve(from, "@body/dofs", loc, "t"), &dofs);
+  EXPECT_EQ(&s->resolve(from, "@body/inner/parent", loc, "t"), &from);
 }
 
 TEST(SceneGraph, LinkedFieldsCarryTheValues) {

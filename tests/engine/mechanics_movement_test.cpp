@@ -72,6 +72,22 @@ TEST(PairBoxROI, SelectsTheFrameBetweenTheBoxesBothClosed) {
   EXPECT_EQ(indicesOf(*s, "closed"), ring);
 }
 
+// BoxROI's pointsInROI: the selected nodes' rest positions, in the order of its indices.
+TEST(BoxROI, GivesThePositionsOfTheSelectedPoints) {
+  auto s = build(R"(<Node name="root">
+    <RegularGridTopology n="3 2 1" min="0 0 0" max="2 1 0"/>
+    <MechanicalObject/>
+    <BoxROI name="roi" box="0.5 -0.1 -0.1  2.1 1.1 0.1"/>
+  </Node>)");
+  EXPECT_EQ(indicesOf(*s, "roi"), (std::vector<int>{1, 2, 4, 5}));
+  for (Component* c : s->all<Component>())
+    if (c->name() == "roi") {
+      FieldValue f;
+      ASSERT_TRUE(c->field("pointsInROI", f));
+      EXPECT_EQ(f.values, (std::vector<double>{1, 0, 0, 2, 0, 0, 1, 1, 0, 2, 1, 0}));
+    }
+}
+
 // Every node of a small grid is moved: half-way through the ramp it is half-way to R x0 + t, and
 // after the end it stays there. The positions at the end of a step are those of its start time.
 TEST(AffineMovement, NodesRampToTheRotatedAndTranslatedPositions) {

@@ -28,7 +28,7 @@ std::string particle(const std::string& name, double m, const std::string& p, co
     <EulerImplicitSolver/>
     <CGLinearSolver iterations="10" tolerance="1e-12" threshold="1e-20"/>
     <MechanicalObject name="dofs" position=")" + p + R"(" velocity=")" + v + R"("/>
-    <UniformMass totalMass=")" + std::to_string(m) + R"("/>
+    <UniformMass name="mass" totalMass=")" + std::to_string(m) + R"("/>
     <UncoupledConstraintCorrection/>
   </Node>)";
 }
@@ -111,11 +111,11 @@ TEST(BilateralConstraint, AParticleHeldAtAnOffsetStaysThere) {
 
 // Two free particles joined where they are (no gravity), the first (mass 1) moving at 1 m/s: after
 // one step both move at the common velocity 1 / (1 + 3) (momentum conserved, the constraint
-// holding their offset), and keep it.
+// holding their offset), and keep it. The objects are linked by their nodes, as SOFA allows.
 TEST(BilateralConstraint, TwoFreeParticlesShareTheirMomentum) {
   const std::string text = R"(<Node name="root" dt="0.01" gravity="0 0 0">)" + std::string(kLoop) +
                            particle("a", 1.0, "0 0 0", "1 0 0") + particle("b", 3.0, "0.5 0.5 0") + R"(
-  <BilateralLagrangianConstraint object1="@a/dofs" object2="@b/dofs" rest_vector="0.5 0.5 0"/>
+  <BilateralLagrangianConstraint object1="@a" object2="@b" rest_vector="0.5 0.5 0"/>
 </Node>)";
   auto scene = load(text);
   Simulation sim(*scene);
@@ -148,7 +148,7 @@ TEST(BilateralConstraint, BadLinksAndCountsAreErrorsNamingTheAttribute) {
               "first_point");
   expectError(R"(<BilateralLagrangianConstraint object1="@a/dofs" object2="@b/dofs" first_point="0" second_point="0" rest_vector="1 0"/>)",
               "rest_vector");
-  expectError(R"(<BilateralLagrangianConstraint object1="@a" object2="@b/dofs" first_point="0" second_point="0"/>)", "object1");
+  expectError(R"(<BilateralLagrangianConstraint object1="@a/mass" object2="@b/dofs" first_point="0" second_point="0"/>)", "object1");
 }
 
 // Without a constraint solver nothing would hold the points: an error, not a silent no-op.
