@@ -129,6 +129,9 @@ class OdeSolver {
   virtual std::optional<Diverged> step(State& s, double t, double dt, int stepIndex) const = 0;
   // Statistics of the last step (linear iterations, residual), for summaries.
   virtual int lastLinearIterations(const State& s) const { return 0; }
+  // The positions the last step's linear system was assembled at (the step's start), where a
+  // constraint correction takes the same system; null when the solver keeps none.
+  virtual const Eigen::Matrix3Xd* linearisedAt(const State& s) const { return nullptr; }
 };
 
 // Sets a kinematically driven state (an instrument) for time t: called with the start time before

@@ -100,7 +100,11 @@ class ConstraintCorrection : public Component, public Stateful {
       }
     }
     if (mode_ == Mode::LinearSolver) {
-      factorizeAt(st, sys_->state().x(st), l.resp, l.A, l.chol.get());
+      // The system of the free motion: linearised where its step started (the positions now are
+      // the free motion's end), so that the correction completes that step's constrained solve.
+      const Eigen::Matrix3Xd* at = ode_->linearisedAt(st);
+      const Eigen::Matrix3Xd& x = sys_->state().x(st);
+      factorizeAt(st, at && at->cols() == x.cols() ? *at : x, l.resp, l.A, l.chol.get());
       l.own = true;
       l.columns.clear();
     }

@@ -30,6 +30,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     Eigen::VectorXd dv;
     int lastIterations = 0;
     BlockSparseMatrix A;
+    Eigen::Matrix3Xd start;  // positions at the start of the last step (the system's linearisation)
     void save(StateWriter& out) const override {
       out.put(dv);
       out.put(lastIterations);
@@ -62,7 +63,9 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     Live& l = stateIn<Live>(st);
     MechanicalObject::Live& s = sys_->state().live(st);
     const int n = sys_->nodes();
-    const Eigen::Matrix3Xd x0 = s.x, v0 = s.v;
+    l.start = s.x;
+    const Eigen::Matrix3Xd& x0 = l.start;
+    const Eigen::Matrix3Xd v0 = s.v;
     Eigen::Matrix3Xd& f = s.f;
     sys_->computeForce(st, s.x, s.v, f);
 
@@ -126,6 +129,10 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     return std::nullopt;
   }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }
+  const Eigen::Matrix3Xd* linearisedAt(const State& s) const override {
+    const Live& l = stateIn<Live>(s);
+    return rigid_ || l.start.cols() == 0 ? nullptr : &l.start;
+  }
   // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F (first order:
   // A v = F, so h A^-1 F and A^-1 F).
   std::optional<StepResponse> stepResponse(double h) const override {
