@@ -331,12 +331,13 @@ class BilateralConstraint : public Component {
       if (!attrs_.isSet(attr[k])) throw error(attr[k], "is needed: the MechanicalObject (Vec3d) whose points are held");
       // SOFA's link to a state may name its node.
       Component* c = nullptr;
-      const Node* n = linkedNode(node(), attrs_.get(attr[k]).text);
-      if (n && n->find<MechanicalObject>()) {
+      try {
+        c = linkedComponent(attr[k]);
+      } catch (const Error&) {
+        const Node* n = linkedNode(node(), attrs_.get(attr[k]).text);
+        if (!n || !n->find<MechanicalObject>()) throw;
         c = n->find<MechanicalObject>();
         scene().initComponent(*c);
-      } else {
-        c = linkedComponent(attr[k]);
       }
       obj[k] = dynamic_cast<MechanicalObject*>(c);
       if (!obj[k])
@@ -348,7 +349,7 @@ class BilateralConstraint : public Component {
     }
     auto points = [](size_t n) { return std::to_string(n) + (n == 1 ? " point" : " points"); };
     std::vector<int> first = linkedInts("first_point"), second = linkedInts("second_point");
-    if (first.empty() && second.empty()) {
+    if (!attrs_.isSet("first_point") && !attrs_.isSet("second_point")) {
       if (obj[0]->size() != obj[1]->size())
         throw error("first_point", "is needed: '" + obj[0]->name() + "' has " + points(obj[0]->size()) + " and '" +
                                        obj[1]->name() + "' " + points(obj[1]->size()) + ", so they do not pair one to one");
@@ -394,7 +395,9 @@ class BilateralConstraint : public Component {
       if (weights.size() > static_cast<size_t>(kMaxContactNodes))
         throw error(attr, "point " + std::to_string(i) + " of '" + s.name() + "' depends on more than " +
                               std::to_string(kMaxContactNodes) + " nodes of its body");
-      p.at = p.body = m->inputState();
+      p.at = m->inputState();
+      // A body nothing integrates holds the point where it is.
+      if (p.at->node().find<OdeSolver>()) p.body = p.at;
       p.where.count = static_cast<int>(weights.size());
       for (size_t k = 0; k < weights.size(); ++k) {
         p.where.nodes[k] = weights[k].first;
@@ -646,8 +649,12 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
             if (u.key() && u.key() == v.key()) Cij += u.sign * v.sign * C(u, v);
         W.block<3, 3>(3 * i, 3 * j) = R[i] * Cij * R[j].transpose();
       }
-    for (int i = 0; i < m; ++i)  // R is orthonormal: a side's eps I stays eps I in the rows
-      for (const Side& u : pairs[i].side) W.block<3, 3>(3 * i, 3 * i).diagonal().array() += u.regularization();
+    for (int i = 0; i < m; ++i) {  // R is orthonormal: a body's eps I stays eps I in the rows
+      const Side &u = pairs[i].side[0], &v = pairs[i].side[1];
+      double eps = u.regularization();
+      if (v.key() != u.key()) eps += v.regularization();  // once per body, as solveBody
+      W.block<3, 3>(3 * i, 3 * i).diagonal().array() += eps;
+    }
     regularize(W);
     gaussSeidel(l, W, dfree, mu, lambda, equality);
     // Forces on each side, then every moving body corrected once.

@@ -49,6 +49,7 @@ void MechanicalObject::init() {
         }
       }
   }
+  if (xInit.cols() == 0 && attrs_.isSet("position")) throw error("position", "is empty: there are no points");
   if (xInit.cols() == 0) {
     // SOFA's default: one point at the origin (moved by the transform attributes), e.g. the
     // anchor of an attachment in a node without a mesh.

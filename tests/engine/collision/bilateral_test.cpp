@@ -241,3 +241,20 @@ TEST(BilateralConstraint, HoldingABeamEndIsTheFixedConstraint) {
   EXPECT_GT(sag, 0.05);
   EXPECT_LT(worst, 1e-9 * sag / 0.1);
 }
+
+// Point lists given but empty (a region that selects nothing) hold nothing: they are not the
+// "every point" default of lists left out.
+TEST(BilateralConstraint, EmptyGivenListsHoldNothing) {
+  const std::string text = R"(<Node name="root" dt="0.01" gravity="0 0 -10">)" + std::string(kLoop) + R"(
+  <Node name="anchor">
+    <MechanicalObject name="dofs" position="0 0 1"/>
+    <BoxROI name="none" box="5 5 5 6 6 6"/>
+  </Node>)" + particle("bob", 1.0, "0 0 0") + R"(
+  <BilateralLagrangianConstraint object1="@anchor/dofs" object2="@bob/dofs" first_point="@anchor/none.indices" second_point="@anchor/none.indices"/>
+</Node>)";
+  auto scene = load(text);
+  Simulation sim(*scene);
+  for (int i = 0; i < 10; ++i) ASSERT_FALSE(sim.step());
+  for (MechanicalObject* m : scene->all<MechanicalObject>())
+    if (m->node().name() == "bob") EXPECT_LT(m->x(sim.state())(2, 0), -0.05);  // it fell
+}
