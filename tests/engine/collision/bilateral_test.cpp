@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
 #include <string>
 
 #include "builtin/Builtins.h"
@@ -20,6 +21,13 @@ using namespace viscera;
 namespace {
 
 std::unique_ptr<Scene> load(const std::string& text) { return buildScene(io::parseSceneText(text, "bilateral.xml")); }
+
+// The MechanicalObject in the node named `node`.
+const MechanicalObject& stateIn(const Scene& s, const std::string& node) {
+  for (MechanicalObject* m : s.all<MechanicalObject>())
+    if (m->node().name() == node) return *m;
+  throw std::runtime_error("no MechanicalObject in a node named " + node);
+}
 
 // A free particle of mass m at p with velocity v, solved in its own node.
 std::string particle(const std::string& name, double m, const std::string& p, const std::string& v = "0 0 0") {
@@ -68,10 +76,7 @@ TEST(BilateralConstraint, ARigidBodyHungByAPointSwingsAsTheCompoundPendulum) {
   auto scene = load(text);
   Simulation sim(*scene);
   const RigidObject& body = *scene->all<RigidObject>().front();
-  const MechanicalObject* hook = nullptr;
-  for (MechanicalObject* m : scene->all<MechanicalObject>())
-    if (m->node().name() == "hook") hook = m;
-  ASSERT_NE(hook, nullptr);
+  const MechanicalObject* hook = &stateIn(*scene, "hook");
   std::vector<double> crossings;
   double last = cx, worstHold = 0, worstArm = 0;
   for (int i = 1; i <= 7000; ++i) {
@@ -101,9 +106,7 @@ TEST(BilateralConstraint, AParticleHeldAtAnOffsetStaysThere) {
 </Node>)";
   auto scene = load(text);
   Simulation sim(*scene);
-  const MechanicalObject* bob = nullptr;
-  for (MechanicalObject* m : scene->all<MechanicalObject>())
-    if (m->node().name() == "bob") bob = m;
+  const MechanicalObject* bob = &stateIn(*scene, "bob");
   for (int i = 0; i < 100; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
   EXPECT_LT((bob->x(sim.state()).col(0) - Eigen::Vector3d(0.3, 0.2, 1)).norm(), 1e-12);
   EXPECT_LT(bob->v(sim.state()).col(0).norm(), 1e-10);
@@ -119,8 +122,7 @@ TEST(BilateralConstraint, TwoFreeParticlesShareTheirMomentum) {
 </Node>)";
   auto scene = load(text);
   Simulation sim(*scene);
-  const MechanicalObject *a = nullptr, *b = nullptr;
-  for (MechanicalObject* m : scene->all<MechanicalObject>()) (m->node().name() == "a" ? a : b) = m;
+  const MechanicalObject *a = &stateIn(*scene, "a"), *b = &stateIn(*scene, "b");
   for (int i = 0; i < 10; ++i) {
     ASSERT_FALSE(sim.step());
     EXPECT_NEAR(a->v(sim.state())(0, 0), 0.25, 1e-12);
@@ -184,9 +186,7 @@ TEST(BilateralConstraint, RegularisationSettlesConflictingConstraints) {
     auto scene = load(text);
     Simulation sim(*scene);
     EXPECT_FALSE(sim.step());
-    for (MechanicalObject* m : scene->all<MechanicalObject>())
-      if (m->node().name() == "p") return Eigen::Vector3d(m->x(sim.state()).col(0));
-    return Eigen::Vector3d(Eigen::Vector3d::Constant(NAN));
+    return Eigen::Vector3d(stateIn(*scene, "p").x(sim.state()).col(0));
   };
   const double c = 0.01 * 0.01 / 1.0, eps = 1e-4;
   const Eigen::Vector3d added = run(R"(regularizationTerm="1e-4")");
@@ -225,12 +225,7 @@ TEST(BilateralConstraint, HoldingABeamEndIsTheFixedConstraint) {
   </Node>
   <BilateralLagrangianConstraint object1="@anchors/dofs" object2="@beam/dofs" first_point="0 1 2 3" second_point="@beam/end.indices"/>)"));
   Simulation a(*fixed), b(*held);
-  auto dofs = [](Scene& s) -> const MechanicalObject& {
-    for (MechanicalObject* m : s.all<MechanicalObject>())
-      if (m->node().name() == "beam") return *m;
-    throw std::runtime_error("no beam");
-  };
-  const MechanicalObject &xa = dofs(*fixed), &xb = dofs(*held);
+  const MechanicalObject &xa = stateIn(*fixed, "beam"), &xb = stateIn(*held, "beam");
   double sag = 0, worst = 0;
   for (int i = 0; i < 50; ++i) {
     ASSERT_FALSE(a.step());
@@ -255,6 +250,5 @@ TEST(BilateralConstraint, EmptyGivenListsHoldNothing) {
   auto scene = load(text);
   Simulation sim(*scene);
   for (int i = 0; i < 10; ++i) ASSERT_FALSE(sim.step());
-  for (MechanicalObject* m : scene->all<MechanicalObject>())
-    if (m->node().name() == "bob") EXPECT_LT(m->x(sim.state())(2, 0), -0.05);  // it fell
+  EXPECT_LT(stateIn(*scene, "bob").x(sim.state())(2, 0), -0.05);  // it fell
 }
