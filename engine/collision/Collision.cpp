@@ -589,12 +589,10 @@ void SurfaceCollisionModel::addForce(State& s, const Eigen::Matrix3Xd& x, const 
   Live& l = stateIn<Live>(s);
   if (!l.penalty) return;
   for (Contact& c : l.contacts) {
-    const double g = gapAt(s, c, x);
-    // A contact between two bodies and its mirror push together or not at all: whether they do is
-    // decided at detection, before either body's solver moves it.
-    if (!c.partner) c.active = g < 0;
-    // A pair the other body's solve has already parted does not pull this side back.
-    else if (c.active && g >= 0) c.active = false;
+    // Between two integrated bodies the force is SOFA's: computed once where the step starts and
+    // held over the step (an external force for each body's solver); otherwise it follows x.
+    const double g = explicitPair(c) ? c.gap0 : c.gap(x);
+    c.active = g < 0;
     if (!c.active) continue;
     const Eigen::Vector3d fc = c.k * g * c.n;
     for (int k = 0; k < c.count; ++k) f.col(c.nodes[k]) += c.w[k] * fc;
@@ -605,7 +603,7 @@ void SurfaceCollisionModel::addDForce(const State& s, const Eigen::Matrix3Xd& dx
   const Live& l = stateIn<Live>(s);
   if (!l.penalty) return;
   for (const Contact& c : l.contacts) {
-    if (!c.active) continue;
+    if (!c.active || explicitPair(c)) continue;
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
     for (int k = 0; k < c.count; ++k) d += c.w[k] * dx.col(c.nodes[k]);
     const Eigen::Vector3d fc = -kFactor * c.k * c.n.dot(d) * c.n;
@@ -640,7 +638,7 @@ void SurfaceCollisionModel::addStiffness(const State& s, BlockSparseMatrix& K, d
   const Live& l = stateIn<Live>(s);
   if (!l.penalty) return;
   for (const Contact& c : l.contacts) {
-    if (!c.active) continue;
+    if (!c.active || explicitPair(c)) continue;
     const Eigen::Matrix3d nn = -kFactor * c.k * c.n * c.n.transpose();
     for (int a = 0; a < c.count; ++a)
       for (int b = 0; b < c.count; ++b) K.block(K.slot(c.nodes[a], c.nodes[b])) += c.w[a] * c.w[b] * nn;
@@ -648,7 +646,8 @@ void SurfaceCollisionModel::addStiffness(const State& s, BlockSparseMatrix& K, d
 }
 
 void SurfaceCollisionModel::finishPenalty(State& s, const Eigen::Matrix3Xd& x) const {
-  for (Contact& c : stateIn<Live>(s).contacts) c.force = c.active ? Eigen::Vector3d(c.k * gapAt(s, c, x) * c.n) : Eigen::Vector3d::Zero();
+  for (Contact& c : stateIn<Live>(s).contacts)
+    c.force = c.active ? Eigen::Vector3d(c.k * (explicitPair(c) ? c.gap0 : c.gap(x)) * c.n) : Eigen::Vector3d::Zero();
 }
 
 double SurfaceCollisionModel::gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const {

@@ -13,10 +13,12 @@
 //    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
 // Two bodies: each vertex of one surface is a point of radius 0 against the other's features, and
 // (both with line models) crossing edges meet edge to edge; the contact on the feature and its
-// mirror on the vertex or edge (opposite normal, same gap) are the pair's two sides. Penalty: SOFA's stiffness k1 k2 / contactDistance, each side acting on its own body,
-// implicitly in that body's solve, with the other body where it stands (solvers run in turn, as
-// SOFA's: momentum is not exchanged exactly between two free bodies); a rigid body's side reaches it
-// as a wrench (RigidMapping). Constraint: one non-penetration and friction row block per pair,
+// mirror on the vertex or edge (opposite normal, same gap) are the pair's two sides. Penalty: SOFA's
+// stiffness k1 k2 / contactDistance; between two integrated bodies each side's force is computed
+// at the step start and held over the step (SOFA applies an interaction between two bodies'
+// solvers as an external force: equal and opposite, so momentum is exchanged exactly); against a
+// fixed obstacle it is implicit in the body's solve. A rigid body's side reaches it as a wrench
+// (RigidMapping). Constraint: one non-penetration and friction row block per pair,
 // solved with every other pair touching the same bodies (Constraint.cpp). A fixed surface (nothing
 // moves its body) takes its side without moving.
 #pragma once
@@ -166,10 +168,14 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   double distanceTo(const State& s, const Eigen::Vector3d& p, double within, const Eigen::Matrix3Xd& x) const;
   // Mean length of the surface's edges at rest.
   double meanEdgeLength() const { return meanEdge_; }
+  // Whether penalty contact c holds its force over the step: a contact between two integrated
+  // bodies (neither side a fixed obstacle). SOFA applies such an interaction, outside both bodies'
+  // solvers, as an external force computed where the step starts; a contact with an instrument or
+  // a fixed obstacle is in the body's implicit system instead.
+  static bool explicitPair(const Contact& c) { return c.partner && !c.partner->isStatic(); }
   // The gap of contact c with this surface's body at x: its own linearised gap, plus, for a contact
-  // between two bodies, how far the other side has moved along the normal since detection (its
-  // solver may have run already this step: SOFA's solvers too run in turn and see each other's
-  // results).
+  // between two bodies, how far the other side has moved along the normal since detection (the
+  // constraint response's free motion moves both).
   double gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const;
   // Fits the bounding-volume hierarchy of `s` to positions x; call before detect() when x changed.
   void refit(State& s, const Eigen::Matrix3Xd& x) const;
