@@ -368,9 +368,15 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
   // An absolute path may name the root node first.
   size_t i = 0;
   if (absolute && parts.size() > 1 && parts[0] == root_->name()) i = 1;
+  bool aboveRoot = false;
   for (; i + 1 < parts.size(); ++i) {
     if (parts[i] == "..") {
-      if (!node->parent()) throw fail("goes above the root node");
+      // As SOFA's lookup, ".." from the root stays at the root.
+      if (!node->parent()) {
+        if (!aboveRoot) addNote(loc.str() + ": note: " + what + ": link '" + link + "' goes above the root node; taken from the root, as SOFA does");
+        aboveRoot = true;
+        continue;
+      }
       node = node->parent();
     } else if (parts[i] == ".") {
       continue;
@@ -418,7 +424,7 @@ const Node* linkedNode(const Node& from, const std::string& link) {
     start = end + 1;
     if (part.empty() || part == ".") continue;
     if (part == "..") {
-      node = node->parent();
+      if (node->parent()) node = node->parent();  // from the root, ".." stays there (as SOFA)
     } else {
       const Node* next = nullptr;
       for (const auto& child : node->children())

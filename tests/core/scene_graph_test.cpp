@@ -125,6 +125,12 @@ TEST(SceneGraph, LinksResolveByEveryPathForm) {
   // has it (SOFA finds "@body/dofs" from inside body's subtree too).
   EXPECT_EQ(&s->resolve(from, "@body/dofs", loc, "t"), &dofs);
   EXPECT_EQ(&s->resolve(from, "@body/inner/parent", loc, "t"), &from);
+  // ".." from the root stays at the root (SOFA's lookup), with a note.
+  const size_t notes = s->notes().size();
+  EXPECT_EQ(&s->resolve(from, "@../../../../body/dofs", loc, "t"), &dofs);
+  ASSERT_EQ(s->notes().size(), notes + 1);
+  EXPECT_NE(s->notes().back().find("goes above the root node"), std::string::npos) << s->notes().back();
+  EXPECT_EQ(linkedNode(inner, "@../../../body"), &body);
 }
 
 TEST(SceneGraph, LinkedFieldsCarryTheValues) {
