@@ -373,7 +373,9 @@ Component& Scene::resolve(const Component& from, const std::string& link, const 
     if (parts[i] == "..") {
       // As SOFA's lookup, ".." from the root stays at the root.
       if (!node->parent()) {
-        if (!aboveRoot) addNote(loc.str() + ": note: " + what + ": link '" + link + "' goes above the root node; taken from the root, as SOFA does");
+        // A link is resolved more than once (init, then the users of its target): one note.
+        const std::string note = loc.str() + ": note: " + what + ": link '" + link + "' goes above the root node; taken from the root, as SOFA does";
+        if (!aboveRoot && std::find(notes_.begin(), notes_.end(), note) == notes_.end()) addNote(note);
         aboveRoot = true;
         continue;
       }

@@ -203,6 +203,14 @@ void SurfaceCollisionModel::init() {
   bvh0_ = std::move(bvh);
   // Nothing moves a body without a solver in its node (a solver above moves rigid bodies only).
   static_ = !rigid_ && !state_->node().find<OdeSolver>();
+  if (rigid_)
+    for (const Node* n = &rigid_->node(); n && !solverAbove_; n = n->parent()) solverAbove_ = n->find<OdeSolver>() != nullptr;
+}
+
+bool SurfaceCollisionModel::integrated() const {
+  // A rigid body's mass, driver and prescribed velocity are known once the scene is initialised.
+  if (rigid_) return solverAbove_ && rigid_->mass > 0 && !rigid_->driven && !rigid_->prescribedVelocity;
+  return !static_;
 }
 
 namespace {

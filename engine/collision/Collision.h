@@ -58,7 +58,7 @@ struct Contact {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();   // unit normal, from the tissue towards the sphere centre
   Eigen::Vector3d p0 = Eigen::Vector3d::Zero();  // tissue point at detection
   double gap0 = 0;                  // gap at detection (tissue at the step start, sphere at the step end)
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // on the tissue over the step (end-of-step value)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // on the tissue over the step (end-of-step value; held between two integrated bodies)
   bool active = false;              // the response applied a force
   double k = 0;                     // penalty stiffness (force per length), SOFA's k1 k2 / (d + r)
 
@@ -172,7 +172,10 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // bodies (neither side a fixed obstacle). SOFA applies such an interaction, outside both bodies'
   // solvers, as an external force computed where the step starts; a contact with an instrument or
   // a fixed obstacle is in the body's implicit system instead.
-  static bool explicitPair(const Contact& c) { return c.partner && !c.partner->isStatic(); }
+  static bool explicitPair(const Contact& c) { return c.partner && c.surface->integrated() && c.partner->integrated(); }
+  // Whether a solver moves the surface's body: a deformable body under an ODE solver, or a rigid
+  // body with a mass, a solver in its node or above it, no driver and no prescribed velocity.
+  bool integrated() const;
   // The gap of contact c with this surface's body at x: its own linearised gap, plus, for a contact
   // between two bodies, how far the other side has moved along the normal since detection (the
   // constraint response's free motion moves both).
@@ -205,7 +208,8 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
   bool rayleighDamped() const override { return false; }
-  // Sets each contact's force from the end-of-step positions (penalty response).
+  // Sets each contact's force from the end-of-step positions, or the force held over the step
+  // between two integrated bodies (penalty response).
   void finishPenalty(State& s, const Eigen::Matrix3Xd& x) const;
 
  private:
@@ -226,6 +230,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   MechanicalObject* surfaceState_ = nullptr;  // carries the surface
   RigidObject* rigid_ = nullptr;              // the rigid body it is on, if any
   bool static_ = false;
+  bool solverAbove_ = false;  // a rigid body's: an ODE solver in its node or above it
   // Per surface vertex, the body's nodes and weights it is mapped from (empty: the same nodes).
   std::vector<std::vector<std::pair<int, double>>> vertexMap_;
   Kind kind_ = Kind::Triangles;

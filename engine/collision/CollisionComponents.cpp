@@ -118,9 +118,11 @@ void registerCollision(Registry& r) {
     s.name = "CollisionResponse";
     s.aliases = {"DefaultContactManager", "RuleBasedContactManager"};
     s.category = "collision";
-    s.doc = "How contacts respond. PenalityContactForceField: a spring k min(gap, 0) per contact whose stiffness "
-            "enters the implicit system, k = k_sphere k_surface / (contactDistance + radius) from the models' "
-            "contactStiffness factors, as SOFA's. FrictionContactConstraint: "
+    s.doc = "How contacts respond. PenalityContactForceField: a spring k min(gap, 0) per contact, with SOFA's "
+            "stiffness from the models' contactStiffness factors (k_sphere k_surface / (contactDistance + radius) for "
+            "an instrument's sphere, k1 k2 / contactDistance between two surfaces); implicit (its stiffness in the "
+            "body's step) against an instrument or a fixed obstacle, held from the step start between two integrated "
+            "bodies, as SOFA's interaction forces. FrictionContactConstraint: "
             "non-penetration with Coulomb friction mu, solved after the free motion (needs FreeMotionAnimationLoop, "
             "GenericConstraintSolver and a constraint correction in the tissue's node).";
     s.add(AttrSpec::choice("response", {"PenalityContactForceField", "PenaltyContactForceField", "default",
@@ -142,8 +144,8 @@ void registerCollision(Registry& r) {
   r.addIgnored("ParallelBruteForceBroadPhase", "the pipeline's broad phase is a bounding-volume hierarchy");
   r.addIgnored("BVHNarrowPhase", "the pipeline's narrow phase is built in");
   r.addIgnored("ParallelBVHNarrowPhase", "the pipeline's narrow phase is built in");
-  r.addIgnored("CollisionGroup", "all instruments collide with all tissue");
-  r.addIgnored("DefaultCollisionGroupManager", "all instruments collide with all tissue");
+  r.addIgnored("CollisionGroup", "every pair of collision models may collide; two integrated bodies' penalty contacts are held from the step start, as SOFA's without a group manager (their solvers are not merged)");
+  r.addIgnored("DefaultCollisionGroupManager", "every pair of collision models may collide; two integrated bodies' penalty contacts are held from the step start, as SOFA's without a group manager (their solvers are not merged)");
 }
 
 }  // namespace viscera

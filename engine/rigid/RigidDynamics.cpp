@@ -184,8 +184,7 @@ std::optional<Diverged> RigidBodyIntegrator::step(const Body& body, State& s, do
     d.object = rb->name();
     return d;
   }
-  // The points on the body where it now is: a body whose contacts follow this one's (solved
-  // later in the step) reads this body's surface at the end of its step.
+  // The points on the body where it now is (the constraint response's free motion reads them).
   for (const RigidMapping* map : body.mappings) map->apply(s);
   return std::nullopt;
 }

@@ -77,10 +77,15 @@ TEST(TwoBodyContact, ARigidCubeRestsWhereItsCornersCarryItsWeight) {
   EXPECT_NEAR(b.w.norm(), 0, 1e-6);
 }
 
-TEST(TwoBodyContact, ADeformableCubeRestsOnItsNodes) {
-  // The cube's 8 nodes as a deformable body held together by springs (a MeshSpringForceField on
-  // its hexahedron); its weight is shared by the 4 bottom nodes.
-  auto scene = buildScene(io::parseSceneText(world("PenaltyContactForceField", R"(
+// The cube's 8 nodes as a deformable body held together by springs (a MeshSpringForceField on
+// its hexahedron); its weight is shared by the 4 bottom nodes. The plate is fixed (no solver) or
+// a rigid body nothing moves (no mass, no solver): an obstacle either way, so the contact is in
+// the cube's implicit step. Held from the step start instead, as between two integrated bodies,
+// it would not settle: k h^2 / m = 1e5 x 1e-4 / 0.25 = 40 per bottom node.
+class DeformableCubeOnAnObstacle : public ::testing::TestWithParam<bool> {};
+
+TEST_P(DeformableCubeOnAnObstacle, RestsOnItsNodes) {
+  std::string text = world("PenaltyContactForceField", R"(
   <Node name="cube">
     <EulerImplicitSolver rayleighMass="8"/>
     <CGLinearSolver iterations="50" tolerance="1e-12" threshold="1e-20"/>
@@ -88,9 +93,20 @@ TEST(TwoBodyContact, ADeformableCubeRestsOnItsNodes) {
     <MechanicalObject name="dofs"/>
     <UniformMass totalMass="2"/>
     <MeshSpringForceField stiffness="1e5"/>
-    <TriangleCollisionModel/>
+    <TriangleCollisionModel contactStiffness="100"/>
   </Node>
-)"), "two_body.xml"));
+)");
+  if (GetParam()) {  // the plate as a massless rigid body, its surface mapped
+    const std::string fixed = R"(<MeshTopology position="-2 -2 0  2 -2 0  2 2 0  -2 2 0" triangles="0 1 2  0 2 3"/>
+    <MechanicalObject/>
+    <TriangleCollisionModel simulated="0" moving="0"/>)";
+    const std::string rigid = R"(<MechanicalObject template="Rigid3d" position="0 0 0 0 0 0 1"/>
+    <Node name="plateSurface"><MeshTopology position="-2 -2 0  2 -2 0  2 2 0  -2 2 0" triangles="0 1 2  0 2 3"/>
+      <MechanicalObject/><TriangleCollisionModel/><RigidMapping/></Node>)";
+    ASSERT_NE(text.find(fixed), std::string::npos);
+    text.replace(text.find(fixed), fixed.size(), rigid);
+  }
+  auto scene = buildScene(io::parseSceneText(text, "two_body.xml"));
   Simulation sim(*scene);
   for (int i = 0; i < 1500; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
   MechanicalObject* cube = nullptr;
@@ -98,10 +114,14 @@ TEST(TwoBodyContact, ADeformableCubeRestsOnItsNodes) {
     if (m->name() == "dofs") cube = m;
   ASSERT_TRUE(cube);
   const Eigen::Matrix3Xd& x = cube->x(sim.state());
-  // Each bottom node carries m g / 4 = 5 with k = 1e4: it sits 5e-4 inside the contact distance.
+  // Each bottom node carries m g / 4 = 5 with k = 100 x 10 / 0.01 = 1e5: it sits 5e-5 inside the
+  // contact distance.
   for (int i = 0; i < 8; ++i)
-    if (x(2, i) < 0.5) EXPECT_NEAR(x(2, i), 0.01 - 2.0 * 10.0 / (4 * 1e4), 2e-6) << "node " << i;
+    if (x(2, i) < 0.5) EXPECT_NEAR(x(2, i), 0.01 - 2.0 * 10.0 / (4 * 1e5), 2e-7) << "node " << i;
 }
+
+INSTANTIATE_TEST_SUITE_P(TwoBodyContact, DeformableCubeOnAnObstacle, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "MasslessRigidPlate" : "FixedPlate"; });
 
 // The constraint response: the same cube, with its compliance (UncoupledConstraintCorrection), comes
 // to rest with its bottom exactly at the contact distance (no sink: the gap is a constraint).
