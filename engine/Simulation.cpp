@@ -3,6 +3,7 @@
 #include <exception>
 
 #include "engine/collision/Collision.h"
+#include "core/Text.h"
 
 #include <mutex>
 #include <set>
@@ -97,7 +98,15 @@ std::optional<Diverged> Simulation::step() {
   if (pipeline_)
     if (auto bad = pipeline_->detect(st, next, st.time)) return failed(bad);
   for (OdeSolver* s : solvers_)
-    if (auto bad = s->step(st, st.time, dt, next)) return failed(bad);
+    if (auto bad = s->step(st, st.time, dt, next)) {
+      double k = 0;
+      if (const int held = pipeline_ && pipeline_->settings().response == ContactSettings::Response::Penalty
+                               ? pipeline_->heldContacts(st, k) : 0)
+        bad->reason += "; " + std::to_string(held) + " penalty contact(s) between two integrated bodies held their force "
+                       "over the step (stiffness up to " + formatNumber(k) + "), which is stable only while k h^2 / m "
+                       "stays well below 1 for the node masses m they act on: lower contactStiffness or the time step";
+      return failed(bad);
+    }
   if (constraints_)
     if (auto bad = constraints_->solve(st, pipeline_, dt, next, tEnd)) return failed(bad);
   if (pipeline_) pipeline_->finish(st);

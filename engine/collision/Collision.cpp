@@ -920,6 +920,19 @@ void CollisionPipeline::finish(State& st) const {
   l.maxPenetration = std::max(l.maxPenetration, l.lastPenetration);
 }
 
+int CollisionPipeline::heldContacts(const State& st, double& largestStiffness) const {
+  int n = 0;
+  largestStiffness = 0;
+  for (const SurfaceCollisionModel* s : surfaces_)
+    if (s->active())
+      for (const Contact& c : s->contacts(st))
+        if (c.gap0 < 0 && SurfaceCollisionModel::explicitPair(c)) {
+          ++n;
+          largestStiffness = std::max(largestStiffness, c.k);
+        }
+  return n;
+}
+
 int CollisionPipeline::contactCount(const State& st) const {
   int n = 0;
   for (const SurfaceCollisionModel* s : surfaces_)

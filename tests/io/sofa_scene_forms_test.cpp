@@ -606,6 +606,29 @@ TEST(SofaSceneForms, SurfacesOfTwoBodiesCollideUnderThePenaltyResponse) {
   EXPECT_LT(left.x(sim.state()).row(0).maxCoeff(), right.x(sim.state()).row(0).minCoeff());
 }
 
+// Far past the held force's stability limit (k h^2 / m = 1.6e4) the blocks blow apart, and the
+// failed step says why.
+TEST(SofaSceneForms, AFailedStepNamesTheHeldContactsBetweenBodies) {
+  auto block = [](const std::string& name, double x, double vx) {
+    return "<Node name=\"" + name + "\"><EulerImplicitSolver/><SparseLDLSolver/>"
+           "<RegularGridTopology name=\"grid\" n=\"2 2 2\" min=\"" + std::to_string(x) + " 0 0\" max=\"" + std::to_string(x + 1) + " 1 1\"/>"
+           "<TetrahedronSetTopologyContainer name=\"tets\"/><Hexa2TetraTopologicalMapping input=\"@grid\" output=\"@tets\"/>"
+           "<MechanicalObject velocity=\"" + std::to_string(vx) + " 0 0\"/><UniformMass totalMass=\"1\"/>"
+           "<TetrahedronFEMForceField youngModulus=\"100\" poissonRatio=\"0.3\"/>"
+           "<TriangleCollisionModel contactStiffness=\"1000\"/></Node>";
+  };
+  const std::string text = "<Node name=\"root\" dt=\"0.01\" gravity=\"0 0 0\"><CollisionPipeline/>"
+                           "<MinProximityIntersection alarmDistance=\"0.1\" contactDistance=\"0.05\"/>" +
+                           block("left", 0, 1) + block("right", 1.02, 0) + "</Node>";
+  auto scene = buildScene(io::parseSceneText(text, "stiff_blocks.xml"));
+  Simulation sim(*scene);
+  std::optional<Diverged> bad;
+  for (int i = 1; i <= 200 && !bad; ++i) bad = sim.step();
+  ASSERT_TRUE(bad) << "the blocks did not blow apart";
+  EXPECT_NE(bad->reason.find("between two integrated bodies held their force"), std::string::npos) << bad->reason;
+  EXPECT_NE(bad->reason.find("lower contactStiffness or the time step"), std::string::npos) << bad->reason;
+}
+
 // SOFA's AddDataRepository puts a folder (from the scene's) on the search path of its files, and
 // its Gravity component in the root node sets the scene's gravity.
 TEST(SofaSceneForms, AddDataRepositoryAndGravity) {
