@@ -439,7 +439,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     svdRegularization_ = attrs_.boolean("useSVDForRegularization");
     // SOFA's LCPConstraintSolver applies its own mu (0.6 unless given) to every contact that has
     // friction at all (a response mu above 0); GenericConstraintSolver's given mu replaces the response's.
-    lcp_ = typeName() == "LCPConstraintSolver";
+    lcp_ = attrs_.component() == "LCPConstraintSolver";  // an alias: the tag as written
     if (attrs_.isSet("mu")) muOverride_ = attrs_.real("mu");
     else if (lcp_) muOverride_ = 0.6;
     if (!hasAnimationLoop())
