@@ -100,8 +100,9 @@ std::optional<Diverged> Simulation::step() {
   for (OdeSolver* s : solvers_)
     if (auto bad = s->step(st, st.time, dt, next)) {
       double k = 0;
-      if (const int held = pipeline_ && pipeline_->settings().response == ContactSettings::Response::Penalty
-                               ? pipeline_->heldContacts(st, k) : 0)
+      const auto* solver = dynamic_cast<const Component*>(s);
+      if (const int held = pipeline_ && solver && pipeline_->settings().response == ContactSettings::Response::Penalty
+                               ? pipeline_->heldContacts(st, solver->node(), k) : 0)
         bad->reason += "; " + std::to_string(held) + " penalty contact(s) between two integrated bodies held their force "
                        "over the step (stiffness up to " + formatNumber(k) + "), which is stable only while k h^2 / m "
                        "stays well below 1 for the node masses m they act on: lower contactStiffness or the time step";

@@ -920,13 +920,19 @@ void CollisionPipeline::finish(State& st) const {
   l.maxPenetration = std::max(l.maxPenetration, l.lastPenetration);
 }
 
-int CollisionPipeline::heldContacts(const State& st, double& largestStiffness) const {
+int CollisionPipeline::heldContacts(const State& st, const Node& under, double& largestStiffness) const {
+  auto below = [&](const SurfaceCollisionModel* s) {
+    for (const Node* n = s->rigidBody() ? &s->rigidBody()->node() : &s->mstate().node(); n; n = n->parent())
+      if (n == &under) return true;
+    return false;
+  };
   int n = 0;
   largestStiffness = 0;
   for (const SurfaceCollisionModel* s : surfaces_)
     if (s->active())
       for (const Contact& c : s->contacts(st))
-        if (c.gap0 < 0 && SurfaceCollisionModel::explicitPair(c)) {
+        if (c.gap0 < 0 && SurfaceCollisionModel::explicitPair(c) && std::less<>{}(s, c.partner) &&  // each pair once
+            (below(s) || below(c.partner))) {
           ++n;
           largestStiffness = std::max(largestStiffness, c.k);
         }

@@ -294,9 +294,10 @@ class CollisionPipeline : public Component, public Stateful {
   const std::vector<SurfaceCollisionModel*>& surfaces() const { return surfaces_; }
   const std::vector<SphereCollisionModel*>& spheres() const { return spheres_; }
   int contactCount(const State& s) const;
-  // Penalty contacts of the current step held over it between two integrated bodies, and their
-  // largest stiffness (a failed step names them: a held force has a stability limit).
-  int heldContacts(const State& s, double& largestStiffness) const;
+  // Penalty contacts of the current step held over it between two integrated bodies, one of them
+  // at or below `under` (a contact and its mirror counted once), and their largest stiffness (a
+  // failed step names them: a held force has a stability limit).
+  int heldContacts(const State& s, const Node& under, double& largestStiffness) const;
   int maxContacts(const State& s) const { return stateIn<Live>(s).maxContacts; }
   // How far a surface vertex is inside a sphere at the end of the last step (radius minus its
   // distance to the centre; <= 0 when none is inside), and the largest over all steps.

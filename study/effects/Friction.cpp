@@ -1,6 +1,7 @@
 // `friction`: the instrument slides more or less on the tissue than the scene's Coulomb
 // coefficient says. One parameter, mu in the CollisionResponse's responseParams ("mu=0.9"); only
-// for scenes with friction contact.
+// for scenes with friction contact. A constraint solver that applies its own mu (SOFA's
+// LCPConstraintSolver always, 0.6 unless given; GenericConstraintSolver when given) gets it too.
 #include <regex>
 
 #include "study/effects/Effect.h"
@@ -20,7 +21,12 @@ class Friction : public Effect {
     for (ElementDesc* r : elementsOf(d.root, "CollisionResponse")) {
       const AttrDesc* p = r->find("responseParams");
       std::smatch m;
-      if (p && std::regex_search(p->value, m, kMu)) return {{"mu", 0.0, 2.0, std::stod(m[1].str()), Scale::Linear, ""}};
+      if (!p || !std::regex_search(p->value, m, kMu)) continue;
+      double mu = std::stod(m[1].str());
+      for (ElementDesc* solver : elementsOf(d.root, "GenericConstraintSolver"))  // the mu that applies
+        if (const AttrDesc* given = solver->find("mu")) mu = std::stod(given->value);
+        else if (solver->tag == "LCPConstraintSolver" && mu > 0) mu = 0.6;
+      return {{"mu", 0.0, 2.0, mu, Scale::Linear, ""}};
     }
     return {};
   }
@@ -31,6 +37,11 @@ class Friction : public Effect {
       r->set("responseParams", std::regex_replace(p->value, kMu, "mu=" + numberText(v.at(0))));
       noteChange(*r, key(), "mu " + numberText(v.at(0)));
     }
+    for (ElementDesc* solver : elementsOf(desc.root, "GenericConstraintSolver"))
+      if (solver->find("mu") || solver->tag == "LCPConstraintSolver") {
+        solver->set("mu", numberText(v.at(0)));
+        noteChange(*solver, key(), "mu " + numberText(v.at(0)));
+      }
   }
 };
 

@@ -181,6 +181,55 @@ TEST(TwoBodyContact, FrictionHoldsBelowTheFrictionAngleAndSlidesAtTheCoulombRate
     }
 }
 
+// Edge against edge: a rigid wedge, its lower ridge along y, falls onto a fixed roof whose ridge
+// runs along x. The ridges cross between their vertices, so only an edge-edge contact (both
+// bodies with a LineCollisionModel, as SOFA's line-line proximities) can hold the wedge: it comes
+// to rest balanced on the crossing with its ridge exactly the contact distance above the roof's.
+// Without the line models it falls through.
+TEST(TwoBodyContact, CrossingEdgesMeetEdgeToEdge) {
+  const std::string roofTris = "0 3 1  0 2 3  0 1 5  0 5 4  2 5 3  2 4 5  0 4 2  1 3 5";
+  auto sceneText = [&](bool lines) {
+    const std::string models = std::string("<TriangleCollisionModel/>") + (lines ? "<LineCollisionModel/>" : "");
+    return R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <CollisionPipeline/>
+  <MinProximityIntersection alarmDistance="0.05" contactDistance="0.01"/>
+  <CollisionResponse response="FrictionContactConstraint" responseParams="mu=0"/>
+  <FreeMotionAnimationLoop/><GenericConstraintSolver tolerance="1e-12"/>
+  <Node name="roof">
+    <MeshTopology position="-2 0 0  2 0 0  -2 -1 -1  2 -1 -1  -2 1 -1  2 1 -1" triangles=")" + roofTris + R"("/>
+    <MechanicalObject/>
+    )" + models + R"(
+  </Node>
+  <Node name="wedge">
+    <EulerImplicitSolver/>
+    <CGLinearSolver iterations="10"/>
+    <MechanicalObject template="Rigid3d" position="0 0 0.03 0 0 0 1"/>
+    <UniformMass totalMass="1"/>
+    <UncoupledConstraintCorrection/>
+    <Node name="surface">
+      <MeshTopology position="0 -2 0  0 2 0  -1 -2 1  -1 2 1  1 -2 1  1 2 1" triangles=")" + roofTris + R"("/>
+      <MechanicalObject/>
+      )" + models + R"(
+      <RigidMapping/>
+    </Node>
+  </Node>
+</Node>)";
+  };
+  for (const bool lines : {true, false}) {
+    auto scene = buildScene(io::parseSceneText(sceneText(lines), "edges.xml"));
+    Simulation sim(*scene);
+    for (int i = 0; i < 50; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
+    const RigidObject::Live& b = scene->all<RigidObject>().front()->live(sim.state());
+    if (lines) {
+      EXPECT_NEAR(b.p.z(), 0.01, 1e-9);
+      EXPECT_NEAR(b.v.norm(), 0, 1e-9);
+      EXPECT_LT(b.w.norm(), 1e-9);
+    } else {
+      EXPECT_LT(b.p.z(), -0.05);  // nothing held it
+    }
+  }
+}
+
 // SOFA's friction defaults: FrictionContact has mu = 0.8 unless told otherwise, the unilateral
 // contact none (and refuses one).
 TEST(TwoBodyContact, TheConstraintResponsesFrictionDefaultsAreSofas) {
