@@ -287,3 +287,32 @@ INSTANTIATE_TEST_SUITE_P(Audit, PlantedEffect,
 
 }  // namespace
 }  // namespace viscera_test
+
+namespace viscera_test {
+namespace {
+
+// The friction effect varies the mu that applies: SOFA's LCPConstraintSolver replaces the
+// response's with its own (0.6 unless given), so the effect starts from that one and sets it too.
+TEST(AuditEffects, FrictionFollowsTheMuAnLcpSolverApplies) {
+  const std::string text = R"(<Node name="root"><FreeMotionAnimationLoop/><LCPConstraintSolver name="lcp"/><CollisionPipeline/>
+    <CollisionResponse response="FrictionContactConstraint" responseParams="mu=0.3"/></Node>)";
+  viscera::study::AuditScene scene;
+  scene.desc = viscera::io::parseSceneText(text, "friction.xml");
+  std::unique_ptr<viscera::study::Effect> friction;
+  for (auto& e : viscera::study::effectLibrary())
+    if (e->key() == "friction") friction = std::move(e);
+  ASSERT_TRUE(friction);
+  const auto params = friction->params(scene);
+  ASSERT_EQ(params.size(), 1u);
+  EXPECT_EQ(params[0].nominal, 0.6);
+  viscera::SceneDesc changed = scene.desc;
+  friction->apply(changed, {0.45}, scene);
+  const viscera::AttrDesc* mu = nullptr;
+  for (const auto& el : changed.root.children)
+    if (el.tag == "LCPConstraintSolver") mu = el.find("mu");
+  ASSERT_TRUE(mu);
+  EXPECT_EQ(std::stod(mu->value), 0.45);
+}
+
+}  // namespace
+}  // namespace viscera_test
