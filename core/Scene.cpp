@@ -81,6 +81,29 @@ std::vector<AttrDesc> withLegacyNames(const ElementDesc& el, const ComponentSpec
               out.end());
     out.push_back({group.target, text, loc});
   }
+  // SOFA's rigid mass written whole: vertexMass="mass volume [inertia per unit mass, 9 numbers]"
+  // (rows split by commas or not); the volume is not used for the motion.
+  if (spec.find("inertiaMatrix"))
+    if (AttrDesc* vm = given("vertexMass"); vm && vm->value.find('[') != std::string::npos) {
+      const size_t open = vm->value.find('['), close = vm->value.find(']', open);
+      std::string inside = vm->value.substr(open + 1, close == std::string::npos ? std::string::npos : close - open - 1);
+      std::replace(inside.begin(), inside.end(), ',', ' ');
+      const auto head = tokens(vm->value.substr(0, open));
+      const auto inertia = tokens(inside);
+      double number = 0;
+      if (close == std::string::npos || head.empty() || head.size() > 2 || inertia.size() != 9 ||
+          !std::all_of(head.begin(), head.end(), [&](const std::string& t) { return parseNumber(t, number); }) ||
+          !tokens(vm->value.substr(close + 1)).empty())
+        throw Error(vm->loc, el.tag + ".vertexMass: SOFA's rigid mass is 'mass volume [9 numbers of the inertia per unit "
+                                      "mass]', got '" + vm->value + "'");
+      if (given("inertiaMatrix"))
+        throw Error(vm->loc, el.tag + ".vertexMass: gives an inertia matrix, and so does inertiaMatrix: give one");
+      std::string matrix;
+      for (const auto& t : inertia) matrix += (matrix.empty() ? "" : " ") + t;
+      const SourceLoc loc = vm->loc;
+      vm->value = head[0];
+      out.push_back({"inertiaMatrix", matrix, loc});
+    }
   if (spec.find("scale3d") && !spec.find("scale"))
     if (AttrDesc* scale = given("scale")) {
       const auto t = tokens(scale->value);

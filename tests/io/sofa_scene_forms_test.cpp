@@ -16,6 +16,7 @@
 #include "engine/Roles.h"
 #include "engine/Simulation.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
 #include "tests/support/ErrorOf.h"
 #include "tests/support/TempDir.h"
@@ -628,6 +629,27 @@ TEST(SofaSceneForms, AFailedStepNamesTheHeldContactsBetweenBodies) {
   // The four vertices of each facing face against the other's face: 8 contacts, each pair once.
   EXPECT_NE(bad->reason.find("8 penalty contact(s) between two integrated bodies held their force"), std::string::npos) << bad->reason;
   EXPECT_NE(bad->reason.find("lower contactStiffness or the time step"), std::string::npos) << bad->reason;
+}
+
+// SOFA's rigid mass written whole, "mass volume [inertia per unit mass]" (rows split by commas or
+// not): the mass, and the inertia as mass x matrix; the volume is not used.
+TEST(SofaSceneForms, ARigidMassWrittenWholeGivesMassAndInertia) {
+  auto body = [](const std::string& vertexMass) {
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root"><Node name="b"><EulerImplicitSolver/>
+      <MechanicalObject template="Rigid3d" position="0 0 0 0 0 0 1"/><UniformMass vertexMass=")" + vertexMass +
+                                                   R"("/></Node></Node>)", "rigid_mass.scn"));
+    scene->init();
+    const RigidObject& r = *scene->all<RigidObject>().front();
+    return std::make_pair(r.mass, Eigen::Matrix3d(r.inertia));
+  };
+  for (const char* text : {"2 1 [1 0 0,0 2 0,0 0 3]", "2 0.5 [1 0 0 0 2 0 0 0 3]"}) {
+    const auto [m, I] = body(text);
+    EXPECT_EQ(m, 2.0) << text;
+    EXPECT_TRUE(I.isApprox(Eigen::Vector3d(2, 4, 6).asDiagonal().toDenseMatrix())) << text << "\n" << I;
+  }
+  const std::string why = test_support::errorOf([&] { body("2 1 [1 0 0,0 2 0]"); });
+  EXPECT_NE(why.find("rigid_mass.scn:2"), std::string::npos) << why;
+  EXPECT_NE(why.find("UniformMass.vertexMass: SOFA's rigid mass is 'mass volume [9 numbers"), std::string::npos) << why;
 }
 
 // SOFA's AddDataRepository puts a folder (from the scene's) on the search path of its files, and
