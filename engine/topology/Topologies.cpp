@@ -2,9 +2,11 @@
 // MeshTopology, the topological mappings that fill them, and the mesh, surface and sphere loaders.
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <set>
 #include <sstream>
 
 #include "core/Registry.h"
@@ -437,6 +439,64 @@ class SurfaceLoader : public Component, public Topology {
 
  private:
   io::SurfaceMesh surface_;
+};
+
+// SOFA's GridMeshCreator: a grid of resolution[0] x resolution[1] points over the unit square
+// (x fastest), cut into quads or triangles by trianglePattern (0: quads, 1: alternate diagonals,
+// 2: upward, 3: downward, each SOFA's), with the edges of those faces, then placed like a loaded
+// mesh. No tetrahedra: a surface for springs, triangle containers and visual models.
+class GridMeshCreator : public Component, public Topology {
+ public:
+  using Component::Component;
+  void init() override {
+    const std::vector<int> res = attrs_.ints("resolution");
+    const int nx = res[0], ny = res[1], pattern = static_cast<int>(attrs_.integer("trianglePattern"));
+    if (nx < 2 || ny < 2) throw error("resolution", "needs at least 2 points in each direction");
+    points_.resize(3, static_cast<Eigen::Index>(nx) * ny);
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x) points_.col(y * nx + x) = Eigen::Vector3d(x / double(nx - 1), y / double(ny - 1), 0);
+    applyPlacement(attrs_, points_);
+    auto v = [&](int x, int y) { return y * nx + x; };
+    std::set<std::array<int, 2>> edges;  // the first orientation met, in SOFA's order
+    auto edge = [&](int a, int b) {
+      if (!edges.count({b, a})) edges.insert({a, b});
+    };
+    auto triangle = [&](int a, int b, int c) {
+      triangles_.insert(triangles_.end(), {a, b, c});
+      edge(a, b), edge(b, c), edge(c, a);
+    };
+    for (int y = 0; y + 1 < ny; ++y)
+      for (int x = 0; x + 1 < nx; ++x) {
+        const bool up = pattern == 2 || (pattern == 1 && (x + y) % 2 == 0);
+        if (pattern == 0) {
+          quads_.insert(quads_.end(), {v(x, y), v(x + 1, y), v(x + 1, y + 1), v(x, y + 1)});
+          edge(v(x, y), v(x + 1, y)), edge(v(x + 1, y), v(x + 1, y + 1));
+          edge(v(x + 1, y + 1), v(x, y + 1)), edge(v(x, y + 1), v(x, y));
+        } else if (up) {
+          triangle(v(x, y), v(x + 1, y), v(x + 1, y + 1));
+          triangle(v(x, y), v(x + 1, y + 1), v(x, y + 1));
+        } else {
+          triangle(v(x, y), v(x + 1, y), v(x, y + 1));
+          triangle(v(x + 1, y), v(x + 1, y + 1), v(x, y + 1));
+        }
+      }
+    for (const auto& e : edges) edges_.insert(edges_.end(), {e[0], e[1]});
+  }
+  const Eigen::Matrix3Xd& points() const override { return points_; }
+  const TetList& tetrahedra() const override { return kNoTets; }
+  bool field(const std::string& name, FieldValue& out) const override {
+    auto put = [&](const std::vector<int>& list) { out.values.assign(list.begin(), list.end()); };
+    if (name == "position") out.values.assign(points_.data(), points_.data() + points_.size());
+    else if (name == "edges") put(edges_);
+    else if (name == "triangles") put(triangles_);
+    else if (name == "quads") put(quads_);
+    else return false;
+    return true;
+  }
+
+ private:
+  Eigen::Matrix3Xd points_;
+  std::vector<int> edges_, triangles_, quads_;
 };
 
 // Spheres from a .sph file: their centres (`position`) and radii (`listRadius`), for a
@@ -1120,6 +1180,21 @@ void registerTopologies(Registry& r) {
     s.add(AttrSpec::file("filename").req().help(".sph file, relative to the scene file or found along the data search path"));
     addPointPlacementAttributes(s, "the centres");
     s.factory = [](BuildContext& c) { return std::make_unique<SphereLoader>(c); };
+    r.add(std::move(s));
+  }
+  {
+    ComponentSpec s;
+    s.name = "GridMeshCreator";
+    s.category = "loader";
+    s.doc = "SOFA's procedural 2-D mesh: resolution[0] x resolution[1] points over the unit square of the xy plane "
+            "(x fastest), cut into faces by trianglePattern; fields position, edges, triangles and quads; placed by "
+            "scale3d, then rotation, then translation, as a loaded mesh.";
+    s.add(AttrSpec::ints("resolution", 2).def("2 2").help("points in x and in y (at least 2 each)"));
+    s.add(AttrSpec::integer("trianglePattern").def("2").atLeast(0).atMost(3).help(
+        "0: quads; triangles 1: alternating diagonals, 2: upward (each cell cut from (x, y) to (x+1, y+1)), 3: downward"));
+    addPointPlacementAttributes(s, "the points");
+    s.add(AttrSpec::string("filename").def("").help("accepted for SOFA scenes (its loaders all carry one); the mesh is made, not read"));
+    s.factory = [](BuildContext& c) { return std::make_unique<GridMeshCreator>(c); };
     r.add(std::move(s));
   }
   for (const char* name : {"MeshOBJLoader", "MeshSTLLoader", "MeshOffLoader"}) {

@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <set>
 #include <string>
 
@@ -650,6 +651,36 @@ TEST(SofaSceneForms, ARigidMassWrittenWholeGivesMassAndInertia) {
   const std::string why = test_support::errorOf([&] { body("2 1 [1 0 0,0 2 0]"); });
   EXPECT_NE(why.find("rigid_mass.scn:2"), std::string::npos) << why;
   EXPECT_NE(why.find("UniformMass.vertexMass: SOFA's rigid mass is 'mass volume [9 numbers"), std::string::npos) << why;
+}
+
+// SOFA's GridMeshCreator: points over the unit square, x fastest, placed like a loaded mesh (scale,
+// then rotation, then translation); faces cut as SOFA's patterns; each edge once, in SOFA's order.
+TEST(SofaSceneForms, GridMeshCreatorMakesSofasGrid) {
+  auto fields = [](const std::string& pattern) {
+    auto scene = buildScene(io::parseSceneText(R"(<Node name="root"><GridMeshCreator name="grid" filename="nofile" resolution="3 2"
+      trianglePattern=")" + pattern + R"(" scale="4 2 1" translation="1 0 5"/></Node>)", "grid.scn"));
+    scene->init();
+    Component* grid = nullptr;
+    for (const auto& c : scene->root().components())
+      if (c->name() == "grid") grid = c.get();
+    std::map<std::string, std::vector<double>> out;
+    for (const char* f : {"position", "edges", "triangles", "quads"}) {
+      FieldValue v;
+      EXPECT_TRUE(grid->field(f, v)) << f;
+      out[f] = v.values;
+    }
+    return out;
+  };
+  auto f = fields("1");
+  EXPECT_EQ(f["position"], (std::vector<double>{1, 0, 5, 3, 0, 5, 5, 0, 5, 1, 2, 5, 3, 2, 5, 5, 2, 5}));
+  // Alternate: cell (0,0) cut from (0,0) to (1,1), cell (1,0) the other way.
+  EXPECT_EQ(f["triangles"], (std::vector<double>{0, 1, 4, 0, 4, 3, 1, 2, 4, 2, 5, 4}));
+  EXPECT_EQ(f["edges"], (std::vector<double>{0, 1, 1, 2, 1, 4, 2, 4, 2, 5, 3, 0, 4, 0, 4, 3, 5, 4}));
+  EXPECT_TRUE(f["quads"].empty());
+  auto q = fields("0");
+  EXPECT_EQ(q["quads"], (std::vector<double>{0, 1, 4, 3, 1, 2, 5, 4}));
+  EXPECT_TRUE(q["triangles"].empty());
+  EXPECT_EQ(q["edges"].size(), 2u * 7);
 }
 
 // SOFA's AddDataRepository puts a folder (from the scene's) on the search path of its files, and
