@@ -197,6 +197,9 @@ void SurfaceCollisionModel::init() {
   triEdges_ = surface->triEdges;
   edgeTris_ = surface->edgeTris;
   vertexNeighbours_ = surface->vertexNeighbours;
+  vertexTris_.assign(X.cols(), {});
+  for (int t = 0; t < static_cast<int>(tris_.size()); ++t)
+    for (int v : tris_[t]) vertexTris_[v].push_back(t);
   auto bvh = std::make_shared<Bvh>();
   fitBoxes(X, *bvh);
   bvh->tree.build(bvh->boxes);
@@ -422,6 +425,194 @@ void SurfaceCollisionModel::detectEdges(const State& st, const SurfaceCollisionM
         m.active = c.active;
         here.push_back(c);
         there.push_back(m);
+      }
+    });
+  }
+}
+
+void SurfaceCollisionModel::addPair(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s, Feature fa,
+                                    std::initializer_list<std::pair<int, double>> a, Feature fb,
+                                    std::initializer_list<std::pair<int, double>> b, const Eigen::Vector3d& n, double dist,
+                                    std::vector<Contact>& here, std::vector<Contact>& there) const {
+  Contact c, m;
+  c.surface = this;
+  c.feature = fa;
+  for (auto [v, w] : a) addVertex(c, v, w);
+  m.surface = &other;
+  m.feature = fb;
+  for (auto [v, w] : b) other.addVertex(m, v, w);
+  c.n = n;
+  m.n = -n;
+  c.p0 = c.point(state_->x(st));
+  m.p0 = m.point(other.state_->x(st));
+  c.gap0 = m.gap0 = dist - s.contactDistance;
+  c.active = m.active = c.gap0 < 0;
+  c.k = m.k = stiffness_ * other.stiffness_ / std::max(s.contactDistance, 1e-12 * std::max(meanEdge_, 1.0));
+  c.partner = &other;
+  m.partner = this;
+  c.mirror = static_cast<int>(there.size());
+  m.mirror = static_cast<int>(here.size());
+  here.push_back(c);
+  there.push_back(m);
+}
+
+// LocalMinDistance's validity tests, as SOFA writes them: d points from the feature's closest point
+// to the other feature. The cones around an edge and a vertex open with the angle between the
+// faces (coneFactor) plus angleCone.
+bool SurfaceCollisionModel::triangleSees(const Eigen::Matrix3Xd& x, int t, const Eigen::Vector3d& d,
+                                         const ContactSettings& s) const {
+  if (!s.filter) return true;
+  const auto& tri = tris_[t];
+  return (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).dot(d) >= 0.0;
+}
+
+bool SurfaceCollisionModel::edgeSees(const Eigen::Matrix3Xd& x, int e, const Eigen::Vector3d& d, const ContactSettings& s) const {
+  if (!s.filter) return true;
+  const int i1 = edges_[e][0], i2 = edges_[e][1];
+  const Eigen::Vector3d ab = (x.col(i2) - x.col(i1)).normalized();
+  const auto& around = edgeTris_[e];
+  // A border or non-manifold edge: only a contact square to it.
+  if (around.size() != 2) return std::abs(ab.dot(d.normalized())) <= s.angleCone + 1e-4;
+  auto runs = [&](const std::array<int, 3>& t) {  // the triangle on the edge's left runs i1 -> i2
+    for (int k = 0; k < 3; ++k)
+      if (t[k] == i1 && t[(k + 1) % 3] == i2) return true;
+    return false;
+  };
+  auto normal = [&](const std::array<int, 3>& t) -> Eigen::Vector3d {
+    return (x.col(t[1]) - x.col(t[0])).cross(x.col(t[2]) - x.col(t[0])).normalized();
+  };
+  const bool firstLeft = runs(tris_[around[0]]);
+  const Eigen::Vector3d n1 = normal(tris_[around[firstLeft ? 1 : 0]]), n2 = normal(tris_[around[firstLeft ? 0 : 1]]);
+  const Eigen::Vector3d mean = (n1 + n2).normalized();
+  if (mean.dot(d) < 0) return false;
+  // Each face's tangent pointing away from it across the edge.
+  const Eigen::Vector3d tangents[2] = {n1.cross(ab).normalized(), ab.cross(n2).normalized()};
+  const double len = d.norm();
+  for (const Eigen::Vector3d& t : tangents) {
+    const double cone = std::max(0.0, mean.dot(t) * s.coneFactor) + s.angleCone;
+    if (t.dot(d) < -cone * len) return false;
+  }
+  return true;
+}
+
+bool SurfaceCollisionModel::vertexSees(const Eigen::Matrix3Xd& x, int v, const Eigen::Vector3d& d, const ContactSettings& s,
+                                       bool lines) const {
+  // SOFA filters a point only where its node also has a line model.
+  if (!s.filter || !lines) return true;
+  const Eigen::Vector3d p = x.col(v);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int t : vertexTris_[v]) {
+    const auto& tri = tris_[t];
+    mean += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
+  }
+  if (vertexTris_[v].empty())
+    for (int u : vertexNeighbours_[v]) mean += (p - x.col(u)).normalized();
+  const double len = d.norm();
+  if (mean.norm() > 1e-10) {
+    mean.normalize();
+    if (mean.dot(d) < -s.angleCone * len) return false;
+  }
+  for (int u : vertexNeighbours_[v]) {
+    const Eigen::Vector3d l = (p - x.col(u)).normalized();  // along the edge, out of the body
+    const double cone = std::max(0.0, mean.dot(l) * s.coneFactor) + s.angleCone;
+    if (l.dot(d) < -cone * len) return false;
+  }
+  return true;
+}
+
+void SurfaceCollisionModel::localMinVertices(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s,
+                                             Features mine, Features theirs, std::vector<Contact>& here,
+                                             std::vector<Contact>& there) const {
+  if (!theirs.points) return;
+  const Eigen::Matrix3Xd& x = surfacePositions(st);
+  const Eigen::Matrix3Xd& y = other.surfacePositions(st);
+  const Bvh& bvh = *stateIn<Live>(st).bvh;
+  const double alarm2 = s.alarmDistance * s.alarmDistance;
+  std::vector<int> tested(edges_.size(), -1);  // the last vertex each edge was tested against
+  for (int v : other.verts_) {
+    const Eigen::Vector3d P = y.col(v);
+    const geom::AabbTree::Box box(P - Eigen::Vector3d::Constant(s.alarmDistance), P + Eigen::Vector3d::Constant(s.alarmDistance));
+    bvh.tree.query(box, [&](int t) {
+      const auto& tri = tris_[t];
+      // The vertex against the triangle's interior (barycentric coordinates above 1e-6).
+      const Eigen::Vector3d A = x.col(tri[0]), AB = x.col(tri[1]) - A, AC = x.col(tri[2]) - A, AP = P - A;
+      const double a00 = AB.dot(AB), a11 = AC.dot(AC), a01 = AB.dot(AC), b0 = AP.dot(AB), b1 = AP.dot(AC);
+      const double det = a00 * a11 - a01 * a01;
+      const double alpha = (b0 * a11 - b1 * a01) / det, beta = (b1 * a00 - b0 * a01) / det;
+      if (alpha >= 1e-6 && beta >= 1e-6 && alpha + beta <= 0.999999) {
+        const Eigen::Vector3d Q = A + alpha * AB + beta * AC, QP = P - Q;
+        const double dist = QP.norm();
+        if (dist * dist < alarm2 && dist > 0 && other.vertexSees(y, v, -QP, s, theirs.lines) && triangleSees(x, t, QP, s))
+          addPair(st, other, s, Feature::Face, {{tri[0], 1 - alpha - beta}, {tri[1], alpha}, {tri[2], beta}}, Feature::Vertex,
+                  {{v, 1.0}}, QP / dist, dist, here, there);
+      }
+      if (!mine.lines) return;
+      // The vertex against the interior of the triangle's edges (each edge once per vertex).
+      for (int e : triEdges_[t]) {
+        if (tested[e] == v) continue;
+        tested[e] = v;
+        const Eigen::Vector3d E0 = x.col(edges_[e][0]), E = x.col(edges_[e][1]) - E0, EP = P - E0;
+        if (!(E.norm() >= 1e-12 * EP.norm())) continue;
+        const double a = EP.dot(E) / E.dot(E);
+        if (!(a >= 1e-6 && a <= 0.999999)) continue;
+        const Eigen::Vector3d Q = E0 + a * E, QP = P - Q;
+        const double dist = QP.norm();
+        if (dist * dist < alarm2 && dist > 0 && other.vertexSees(y, v, -QP, s, theirs.lines) && edgeSees(x, e, QP, s))
+          addPair(st, other, s, Feature::Edge, {{edges_[e][0], 1 - a}, {edges_[e][1], a}}, Feature::Vertex, {{v, 1.0}},
+                  QP / dist, dist, here, there);
+      }
+    });
+  }
+}
+
+void SurfaceCollisionModel::detectLocalMinDistance(const State& st, const SurfaceCollisionModel& other,
+                                                   const ContactSettings& s, Features mine, Features theirs,
+                                                   std::vector<Contact>& here, std::vector<Contact>& there) const {
+  localMinVertices(st, other, s, mine, theirs, here, there);
+  other.localMinVertices(st, *this, s, theirs, mine, there, here);
+  const Eigen::Matrix3Xd& x = surfacePositions(st);
+  const Eigen::Matrix3Xd& y = other.surfacePositions(st);
+  const Bvh& bvh = *stateIn<Live>(st).bvh;
+  const double alarm2 = s.alarmDistance * s.alarmDistance;
+  const Eigen::Vector3d reach = Eigen::Vector3d::Constant(s.alarmDistance);
+  if (mine.points && theirs.points) {
+    std::vector<int> tested(x.cols(), -1);
+    for (int v : other.verts_) {
+      const Eigen::Vector3d P = y.col(v);
+      bvh.tree.query(geom::AabbTree::Box(P - reach, P + reach), [&](int t) {
+        for (int u : tris_[t]) {
+          if (tested[u] == v) continue;
+          tested[u] = v;
+          const Eigen::Vector3d d = P - x.col(u);
+          const double dist = d.norm();
+          if (dist * dist < alarm2 && dist > 0 && vertexSees(x, u, d, s, mine.lines) && other.vertexSees(y, v, -d, s, theirs.lines))
+            addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, d / dist, dist, here, there);
+        }
+      });
+    }
+  }
+  if (!(mine.lines && theirs.lines)) return;
+  std::vector<int> tested(edges_.size(), -1);
+  for (int eb = 0; eb < static_cast<int>(other.edges_.size()); ++eb) {
+    const Eigen::Vector3d C = y.col(other.edges_[eb][0]), D = y.col(other.edges_[eb][1]);
+    bvh.tree.query(geom::AabbTree::Box(C.cwiseMin(D) - reach, C.cwiseMax(D) + reach), [&](int t) {
+      for (int ea : triEdges_[t]) {
+        if (tested[ea] == eb) continue;
+        tested[ea] = eb;
+        const Eigen::Vector3d A = x.col(edges_[ea][0]), AB = x.col(edges_[ea][1]) - A, CD = D - C, AC = C - A;
+        const double a00 = AB.dot(AB), a11 = CD.dot(CD), a01 = -CD.dot(AB), b0 = AB.dot(AC), b1 = -CD.dot(AC);
+        const double det = a00 * a11 - a01 * a01;
+        double alpha = 0.5, beta = 0.5;  // parallel edges: their middles
+        if (std::abs(det) > 1e-30) {
+          alpha = (b0 * a11 - b1 * a01) / det;
+          beta = (b1 * a00 - b0 * a01) / det;
+          if (!(alpha >= 1e-15 && alpha <= 1 - 1e-15 && beta >= 1e-15 && beta <= 1 - 1e-15)) continue;
+        }
+        const Eigen::Vector3d PQ = C + beta * CD - (A + alpha * AB);
+        const double dist = PQ.norm();
+        if (dist * dist < alarm2 && dist > 0 && edgeSees(x, ea, PQ, s) && other.edgeSees(y, eb, -PQ, s))
+          addPair(st, other, s, Feature::Edge, {{edges_[ea][0], 1 - alpha}, {edges_[ea][1], alpha}}, Feature::Edge,
+                  {{other.edges_[eb][0], 1 - beta}, {other.edges_[eb][1], beta}}, PQ / dist, dist, here, there);
       }
     });
   }
@@ -682,6 +873,11 @@ void ProximityIntersection::init() {
   }
   alarmDistance = attrs_.real("alarmDistance");
   contactDistance = attrs_.real("contactDistance");
+  localMinDistance = attrs_.component() == "LocalMinDistance";  // an alias: the tag as written
+  // SOFA calls its validity tests unless useLMDFilters hands them to another component.
+  filter = attrs_.boolean("filterIntersection") && !attrs_.boolean("useLMDFilters");
+  angleCone = attrs_.real("angleCone");
+  coneFactor = attrs_.real("coneFactor");
   if (contactDistance > alarmDistance)
     throw error("contactDistance", "must not exceed alarmDistance (" + attrs_.get("alarmDistance").text + ")");
 }
@@ -747,6 +943,10 @@ void CollisionPipeline::init() {
     scene().initComponent(*ix);
     settings_.alarmDistance = ix->alarmDistance;
     settings_.contactDistance = ix->contactDistance;
+    settings_.localMinDistance = ix->localMinDistance;
+    settings_.filter = ix->filter;
+    settings_.angleCone = ix->angleCone;
+    settings_.coneFactor = ix->coneFactor;
   } else {
     scene().addNote(loc().str() + ": note: no MinProximityIntersection/LocalMinDistance beside the pipeline: alarmDistance " +
                     std::to_string(settings_.alarmDistance) + ", contactDistance " + std::to_string(settings_.contactDistance));
@@ -769,6 +969,7 @@ void CollisionPipeline::init() {
   }
   for (SurfaceCollisionModel* s : surfaces_) {
     if (s->kind() == SurfaceCollisionModel::Kind::Lines) lines_.insert(&s->surfaceState());
+    if (s->kind() == SurfaceCollisionModel::Kind::Points) points_.insert(&s->surfaceState());
     SurfaceCollisionModel* b = best[&s->surfaceState()];
     s->setActive(s == b);
     if (s != b)
@@ -873,6 +1074,14 @@ std::optional<Diverged> CollisionPipeline::detect(State& s, int stepIndex, doubl
       ContactSettings pair = settings_;
       pair.contactDistance += a->ownContactDistance() + b->ownContactDistance();
       pair.alarmDistance += a->ownContactDistance() + b->ownContactDistance();
+      if (settings_.localMinDistance && a->kind() == SurfaceCollisionModel::Kind::Triangles &&
+          b->kind() == SurfaceCollisionModel::Kind::Triangles) {
+        auto features = [&](const SurfaceCollisionModel* m) {
+          return SurfaceCollisionModel::Features{lines_.count(&m->surfaceState()) > 0, points_.count(&m->surfaceState()) > 0};
+        };
+        if (i < j) a->detectLocalMinDistance(s, *b, pair, features(a), features(b), found[i], found[j]);
+        continue;
+      }
       a->detectVertices(s, *b, pair, found[i], found[j]);
       if (i < j && lines_.count(&a->surfaceState()) && lines_.count(&b->surfaceState()))
         a->detectEdges(s, *b, pair, found[i], found[j]);

@@ -25,6 +25,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <initializer_list>
 #include <memory>
 #include <set>
 #include <vector>
@@ -78,6 +79,11 @@ struct ContactSettings {
   double alarmDistance = 1.0;
   double contactDistance = 0.5;
   double mu = 0.0;  // Coulomb friction (constraint response)
+  // SOFA's LocalMinDistance: contacts between two surfaces are its set (see
+  // SurfaceCollisionModel::detectLocalMinDistance), with its validity cones unless filter is off.
+  bool localMinDistance = false;
+  bool filter = true;
+  double angleCone = 0.0, coneFactor = 0.5;
 };
 
 // A sphere on a rigid body's frame origin: SOFA's SphereCollisionModel on a Rigid3d object.
@@ -197,6 +203,20 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // thin part of another body between its vertices, which vertex contacts miss.
   void detectEdges(const State& s, const SurfaceCollisionModel& other, const ContactSettings& settings,
                    std::vector<Contact>& here, std::vector<Contact>& there) const;
+  // The collision models a body carries on its surface (SOFA's TriangleCollisionModel,
+  // LineCollisionModel, PointCollisionModel): which features take part in LocalMinDistance's tests.
+  struct Features {
+    bool lines = false, points = false;
+  };
+  // SOFA's LocalMinDistance between this surface and `other` (each pair of surfaces once): a vertex
+  // against the interior of a triangle (both ways, where the vertex's body has a point model), a
+  // vertex against the interior of an edge (both ways, line and point models), two edges at
+  // interior points (line models on both) and two vertices (point models on both), each within
+  // the alarm distance, along the line between the closest points, and, with the filter on, only
+  // where each feature sees the other from outside its body (the faces' side, the cones around
+  // edges and vertices). Unlike detectVertices, a vertex may touch several features at once.
+  void detectLocalMinDistance(const State& s, const SurfaceCollisionModel& other, const ContactSettings& settings,
+                              Features mine, Features theirs, std::vector<Contact>& here, std::vector<Contact>& there) const;
   // The contacts of the current step, with the response they get.
   void setContacts(State& s, std::vector<Contact> c, const ContactSettings& settings) const;
   std::vector<Contact>& contacts(State& s) const { return stateIn<Live>(s).contacts; }
@@ -223,6 +243,20 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void addVertex(Contact& c, int v, double w) const;
   // The sum of the outward normals of the faces at edge e, at positions x.
   Eigen::Vector3d edgeNormal(int e, const Eigen::Matrix3Xd& x) const;
+  // Vertices of `other` against this surface's triangles and edges (one direction of
+  // detectLocalMinDistance); vertex contacts go to `there`, their features' to `here`.
+  void localMinVertices(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s, Features mine,
+                        Features theirs, std::vector<Contact>& here, std::vector<Contact>& there) const;
+  // Appends a contact on this surface's feature (its vertices and weights) and its mirror on the
+  // other's, the normal n pointing from here to there, the features `dist` apart.
+  void addPair(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s, Feature fa,
+               std::initializer_list<std::pair<int, double>> a, Feature fb, std::initializer_list<std::pair<int, double>> b,
+               const Eigen::Vector3d& n, double dist, std::vector<Contact>& here, std::vector<Contact>& there) const;
+  // LocalMinDistance's validity tests: whether the feature sees the other feature, in direction d
+  // from its closest point, from outside its body.
+  bool vertexSees(const Eigen::Matrix3Xd& x, int v, const Eigen::Vector3d& d, const ContactSettings& s, bool lines) const;
+  bool edgeSees(const Eigen::Matrix3Xd& x, int e, const Eigen::Vector3d& d, const ContactSettings& s) const;
+  bool triangleSees(const Eigen::Matrix3Xd& x, int t, const Eigen::Vector3d& d, const ContactSettings& s) const;
   // Where the surface comes from: the `topology` link, else the nearest node's topology.
   Component& surfaceSource();
   void checkNodes(const int* nodes, Eigen::Index count, Eigen::Index size) const;
@@ -243,6 +277,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   std::vector<std::array<int, 3>> triEdges_;       // per triangle: edge ids of (v0v1, v1v2, v2v0)
   std::vector<std::vector<int>> edgeTris_;         // per edge: adjacent triangles
   std::vector<std::vector<int>> vertexNeighbours_; // per node: surface neighbours (empty off the surface)
+  std::vector<std::vector<int>> vertexTris_;       // per node: the triangles around it
   std::shared_ptr<const Bvh> bvh0_;  // the hierarchy built on the rest surface
 };
 
@@ -252,6 +287,9 @@ class ProximityIntersection : public Component {
   using Component::Component;
   void init() override;
   double alarmDistance = 1.0, contactDistance = 0.5;
+  // LocalMinDistance (the tag as written) and its filter settings.
+  bool localMinDistance = false, filter = true;
+  double angleCone = 0.0, coneFactor = 0.5;
 };
 
 // SOFA's CollisionResponse (DefaultContactManager): the response and its parameters.
@@ -308,7 +346,8 @@ class CollisionPipeline : public Component, public Stateful {
   ContactSettings settings_;
   std::vector<SphereCollisionModel*> spheres_;
   std::vector<SurfaceCollisionModel*> surfaces_;
-  std::set<const MechanicalObject*> lines_;  // surfaces with a LineCollisionModel (edge-edge contacts)
+  std::set<const MechanicalObject*> lines_;   // surfaces with a LineCollisionModel (edge-edge contacts)
+  std::set<const MechanicalObject*> points_;  // surfaces with a PointCollisionModel (LocalMinDistance)
   std::vector<NodeSphereCollisionModel*> nodeSpheres_;  // alone in the scene: they may not touch
 };
 

@@ -89,14 +89,23 @@ void registerCollision(Registry& r) {
     s.aliases = {"LocalMinDistance", "NewProximityIntersection"};
     s.category = "collision";
     s.doc = "Contact distances: features closer than alarmDistance to a sphere become contacts, and the response "
-            "keeps them at least contactDistance away from it. Only local-minimum features are kept (as "
-            "LocalMinDistance), so a contact is never counted twice through neighbouring triangles.";
+            "keeps them at least contactDistance away from it. Only local-minimum features are kept, so a contact is "
+            "never counted twice through neighbouring triangles. Between two bodies' surfaces, written as "
+            "LocalMinDistance, the contacts are SOFA's: a vertex against a triangle's interior or an edge's interior, "
+            "two edges at interior points, two vertices (as the bodies' Triangle/Line/PointCollisionModels allow), "
+            "each along the line between the closest points and, with the filter, only where each feature sees the "
+            "other from outside its body; otherwise one contact per vertex at its closest feature, plus crossing "
+            "edges.";
     s.add(AttrSpec::real("alarmDistance").def("1").above(0).unit(Dimension::length()).help("detection distance"));
     s.add(AttrSpec::real("contactDistance").def("0.5").atLeast(0).unit(Dimension::length()).help("distance kept between surfaces"));
-    s.add(AttrSpec::real("angleCone").def("0").help("accepted for SOFA scenes; the exact Voronoi test is used"));
-    s.add(AttrSpec::real("coneFactor").def("0.5").help("accepted for SOFA scenes; the exact Voronoi test is used"));
-    s.add(AttrSpec::boolean("useLMDFilters").def("false").help("accepted for SOFA scenes; the exact Voronoi test is used"));
-    s.add(AttrSpec::boolean("filterIntersection").def("true").help("accepted for SOFA scenes; the exact Voronoi test is used"));
+    s.add(AttrSpec::real("angleCone").def("0").help("LocalMinDistance between surfaces: widens each validity cone (as a cosine) beyond "
+                                                    "the one the faces make"));
+    s.add(AttrSpec::real("coneFactor").def("0.5").help("LocalMinDistance between surfaces: how far an edge's or a vertex's validity "
+                                                       "cone reaches over its faces (times the cosine of their mean normal with the face)"));
+    s.add(AttrSpec::boolean("useLMDFilters").def("false").help("LocalMinDistance: SOFA leaves the validity tests to a separate filter "
+                                                               "component; here that means no validity tests"));
+    s.add(AttrSpec::boolean("filterIntersection").def("true").help("LocalMinDistance between surfaces: the validity tests (a feature "
+                                                                   "must see the other from outside its body)"));
     s.add(AttrSpec::boolean("useSphereTriangle").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("usePointPoint").def("true").help("accepted for SOFA scenes"));
     s.add(AttrSpec::boolean("useLinePoint").def("true").help("accepted for SOFA scenes"));
