@@ -434,6 +434,7 @@ void SurfaceCollisionModel::addPair(const State& st, const SurfaceCollisionModel
                                     std::initializer_list<std::pair<int, double>> a, Feature fb,
                                     std::initializer_list<std::pair<int, double>> b, const Eigen::Vector3d& n, double dist,
                                     std::vector<Contact>& here, std::vector<Contact>& there) const {
+  if (!(n.norm() > 0.5)) return;  // no direction (coincident features on a degenerate surface): nothing to push along
   Contact c, m;
   c.surface = this;
   c.feature = fa;
@@ -528,6 +529,9 @@ void SurfaceCollisionModel::localMinVertices(const State& st, const SurfaceColli
   const Eigen::Matrix3Xd& y = other.surfacePositions(st);
   const Bvh& bvh = *stateIn<Live>(st).bvh;
   const double alarm2 = s.alarmDistance * s.alarmDistance;
+  // Features closer than this touch: SOFA's direction between them is undefined (it divides by
+  // zero), so the contact takes this surface's normal there and skips the validity tests.
+  const double touch = 1e-12 * std::max(meanEdge_, other.meanEdge_);
   std::vector<int> tested(edges_.size(), -1);  // the last vertex each edge was tested against
   for (int v : other.verts_) {
     const Eigen::Vector3d P = y.col(v);
@@ -542,9 +546,12 @@ void SurfaceCollisionModel::localMinVertices(const State& st, const SurfaceColli
       if (alpha >= 1e-6 && beta >= 1e-6 && alpha + beta <= 0.999999) {
         const Eigen::Vector3d Q = A + alpha * AB + beta * AC, QP = P - Q;
         const double dist = QP.norm();
-        if (dist * dist < alarm2 && dist > 0 && other.vertexSees(y, v, -QP, s, theirs.lines) && triangleSees(x, t, QP, s))
+        const bool touching = dist <= touch;  // no direction between them: the face's own
+        if (dist * dist < alarm2 &&
+            (touching || (other.vertexSees(y, v, -QP, s, theirs.lines) && triangleSees(x, t, QP, s))))
           addPair(st, other, s, Feature::Face, {{tri[0], 1 - alpha - beta}, {tri[1], alpha}, {tri[2], beta}}, Feature::Vertex,
-                  {{v, 1.0}}, QP / dist, dist, here, there);
+                  {{v, 1.0}}, touching ? Eigen::Vector3d(AB.cross(AC).normalized()) : Eigen::Vector3d(QP / dist), dist, here,
+                  there);
       }
       if (!mine.lines) return;
       // The vertex against the interior of the triangle's edges (each edge once per vertex).
@@ -557,9 +564,10 @@ void SurfaceCollisionModel::localMinVertices(const State& st, const SurfaceColli
         if (!(a >= 1e-6 && a <= 0.999999)) continue;
         const Eigen::Vector3d Q = E0 + a * E, QP = P - Q;
         const double dist = QP.norm();
-        if (dist * dist < alarm2 && dist > 0 && other.vertexSees(y, v, -QP, s, theirs.lines) && edgeSees(x, e, QP, s))
+        const bool touching = dist <= touch;
+        if (dist * dist < alarm2 && (touching || (other.vertexSees(y, v, -QP, s, theirs.lines) && edgeSees(x, e, QP, s))))
           addPair(st, other, s, Feature::Edge, {{edges_[e][0], 1 - a}, {edges_[e][1], a}}, Feature::Vertex, {{v, 1.0}},
-                  QP / dist, dist, here, there);
+                  touching ? Eigen::Vector3d(edgeNormal(e, x).normalized()) : Eigen::Vector3d(QP / dist), dist, here, there);
       }
     });
   }
@@ -574,6 +582,7 @@ void SurfaceCollisionModel::detectLocalMinDistance(const State& st, const Surfac
   const Eigen::Matrix3Xd& y = other.surfacePositions(st);
   const Bvh& bvh = *stateIn<Live>(st).bvh;
   const double alarm2 = s.alarmDistance * s.alarmDistance;
+  const double touch = 1e-12 * std::max(meanEdge_, other.meanEdge_);  // as in localMinVertices
   const Eigen::Vector3d reach = Eigen::Vector3d::Constant(s.alarmDistance);
   if (mine.points && theirs.points) {
     std::vector<int> tested(x.cols(), -1);
@@ -585,8 +594,16 @@ void SurfaceCollisionModel::detectLocalMinDistance(const State& st, const Surfac
           tested[u] = v;
           const Eigen::Vector3d d = P - x.col(u);
           const double dist = d.norm();
-          if (dist * dist < alarm2 && dist > 0 && vertexSees(x, u, d, s, mine.lines) && other.vertexSees(y, v, -d, s, theirs.lines))
+          if (dist <= touch) {  // coincident vertices: this one's mean face normal
+            Eigen::Vector3d n = Eigen::Vector3d::Zero();
+            for (int t2 : vertexTris_[u]) {
+              const auto& tri = tris_[t2];
+              n += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
+            }
+            if (n.norm() > 0) addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, n.normalized(), dist, here, there);
+          } else if (dist * dist < alarm2 && vertexSees(x, u, d, s, mine.lines) && other.vertexSees(y, v, -d, s, theirs.lines)) {
             addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, d / dist, dist, here, there);
+          }
         }
       });
     }
@@ -610,9 +627,11 @@ void SurfaceCollisionModel::detectLocalMinDistance(const State& st, const Surfac
         }
         const Eigen::Vector3d PQ = C + beta * CD - (A + alpha * AB);
         const double dist = PQ.norm();
-        if (dist * dist < alarm2 && dist > 0 && edgeSees(x, ea, PQ, s) && other.edgeSees(y, eb, -PQ, s))
+        const bool touching = dist <= touch;
+        if (dist * dist < alarm2 && (touching || (edgeSees(x, ea, PQ, s) && other.edgeSees(y, eb, -PQ, s))))
           addPair(st, other, s, Feature::Edge, {{edges_[ea][0], 1 - alpha}, {edges_[ea][1], alpha}}, Feature::Edge,
-                  {{other.edges_[eb][0], 1 - beta}, {other.edges_[eb][1], beta}}, PQ / dist, dist, here, there);
+                  {{other.edges_[eb][0], 1 - beta}, {other.edges_[eb][1], beta}},
+                  touching ? Eigen::Vector3d(edgeNormal(ea, x).normalized()) : Eigen::Vector3d(PQ / dist), dist, here, there);
       }
     });
   }
@@ -976,6 +995,24 @@ void CollisionPipeline::init() {
       scene().addNote(s->loc().str() + ": note: " + s->typeName() + " '" + s->name() + "' is covered by " + b->typeName() +
                       " '" + b->name() + "' on the same body (its edges and vertices are contact features too)");
   }
+  if (settings_.localMinDistance)
+    for (size_t i = 0; i < surfaces_.size(); ++i)
+      for (size_t j = i + 1; j < surfaces_.size(); ++j) {
+        const SurfaceCollisionModel *a = surfaces_[i], *b = surfaces_[j];
+        if (!a->active() || !b->active() || a->body() == b->body() || (a->isStatic() && b->isStatic())) continue;
+        const std::string pair = "'" + a->name() + "' (" + a->node().path() + ") and '" + b->name() + "' (" + b->node().path() + ")";
+        if (a->kind() != SurfaceCollisionModel::Kind::Triangles || b->kind() != SurfaceCollisionModel::Kind::Triangles) {
+          scene().addNote(loc().str() + ": note: LocalMinDistance between " + pair + ": one has no TriangleCollisionModel, "
+                          "so their contacts are Viscera's vertex-against-feature set, not LocalMinDistance's");
+          continue;
+        }
+        const bool pa = points_.count(&a->surfaceState()), pb = points_.count(&b->surfaceState());
+        const bool la = lines_.count(&a->surfaceState()), lb = lines_.count(&b->surfaceState());
+        if (!pa && !pb && !(la && lb))
+          scene().addNote(loc().str() + ": note: LocalMinDistance tests nothing between " + pair + ": it ignores triangle "
+                          "against triangle and triangle against line (as SOFA's); add a PointCollisionModel beside a "
+                          "surface for its vertices to touch the other");
+      }
   // Spheres on a deformable body's nodes can only touch another deformable body, which is not
   // handled: accept them where there is nothing for them to touch.
   nodeSpheres_ = scene().all<NodeSphereCollisionModel>();

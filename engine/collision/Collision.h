@@ -12,8 +12,9 @@
 //  - constraint: non-penetration with Coulomb friction, solved after the free motion by the
 //    constraint solver on the Delassus operator W = H C H^T (C from the ConstraintCorrection).
 // Two bodies: each vertex of one surface is a point of radius 0 against the other's features, and
-// (both with line models) crossing edges meet edge to edge; the contact on the feature and its
-// mirror on the vertex or edge (opposite normal, same gap) are the pair's two sides. Penalty: SOFA's
+// (both with line models) crossing edges meet edge to edge; under LocalMinDistance the contacts
+// are SOFA's set instead (detectLocalMinDistance). The contact on one body's feature and its
+// mirror on the other's (opposite normal, same gap) are the pair's two sides. Penalty: SOFA's
 // stiffness k1 k2 / contactDistance; between two integrated bodies each side's force is computed
 // at the step start and held over the step (SOFA applies an interaction between two bodies'
 // solvers as an external force: equal and opposite, so momentum is exchanged exactly); against a

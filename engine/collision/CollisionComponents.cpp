@@ -91,11 +91,11 @@ void registerCollision(Registry& r) {
     s.doc = "Contact distances: features closer than alarmDistance to a sphere become contacts, and the response "
             "keeps them at least contactDistance away from it. Only local-minimum features are kept, so a contact is "
             "never counted twice through neighbouring triangles. Between two bodies' surfaces, written as "
-            "LocalMinDistance, the contacts are SOFA's: a vertex against a triangle's interior or an edge's interior, "
-            "two edges at interior points, two vertices (as the bodies' Triangle/Line/PointCollisionModels allow), "
-            "each along the line between the closest points and, with the filter, only where each feature sees the "
-            "other from outside its body; otherwise one contact per vertex at its closest feature, plus crossing "
-            "edges.";
+            "LocalMinDistance with a TriangleCollisionModel on both, the contacts are SOFA's: a vertex against a "
+            "triangle's interior or an edge's interior, two edges at interior points, two vertices (as the bodies' "
+            "Line/PointCollisionModels allow; triangles alone do not meet), each along the line between the closest "
+            "points and, with the filter, only where each feature sees the other from outside its body; otherwise "
+            "one contact per vertex at its closest feature, plus crossing edges.";
     s.add(AttrSpec::real("alarmDistance").def("1").above(0).unit(Dimension::length()).help("detection distance"));
     s.add(AttrSpec::real("contactDistance").def("0.5").atLeast(0).unit(Dimension::length()).help("distance kept between surfaces"));
     s.add(AttrSpec::real("angleCone").def("0").help("LocalMinDistance between surfaces: widens each validity cone (as a cosine) beyond "
