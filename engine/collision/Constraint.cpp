@@ -48,13 +48,15 @@ class ConstraintCorrection : public Component, public Stateful {
                                                                                             : Mode::Precomputed;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     auto* ode = node().find<OdeSolver>();
-    if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver or StaticSolver) in its node");
+    if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver, symplectic EulerExplicitSolver or StaticSolver) in its node");
     scene().initComponent(dynamic_cast<Component&>(*ode));
     ode_ = ode;
     auto r = ode->stepResponse(scene().dt());
-    if (!r) throw error("the ODE solver in its node has no linear system to correct");
+    if (!r)
+      throw error("the ODE solver in its node gives no step response to correct (EulerImplicitSolver, symplectic "
+                  "EulerExplicitSolver and StaticSolver do)");
     if (mode_ == Mode::Uncoupled && !(r->mFactor > 0))
-      throw error("the uncoupled (mass-only) compliance needs a dynamic solver (EulerImplicitSolver)");
+      throw error("the uncoupled (mass-only) compliance needs a dynamic solver (EulerImplicitSolver or symplectic EulerExplicitSolver)");
     if (mode_ != Mode::Uncoupled) sys_->prepareAssembly();
     // The compliance at rest for the scene's step, factorised once and shared by every simulation.
     if (mode_ == Mode::Precomputed) {
@@ -292,7 +294,8 @@ class RigidConstraintCorrection : public Component {
     if (!ode_) throw error("rigid body '" + body_->name() + "' has no ODE solver in its node or above it");
     const auto r = ode_->stepResponse(h);
     if (!r || !(r->xFactor > 0))
-      throw error("the solver moving rigid body '" + body_->name() + "' gives no step response (use EulerImplicitSolver)");
+      throw error("the solver moving rigid body '" + body_->name() +
+                  "' gives no step response (use EulerImplicitSolver, or EulerExplicitSolver with symplectic=\"true\")");
     return *r;
   }
 

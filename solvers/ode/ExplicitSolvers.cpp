@@ -131,6 +131,13 @@ class EulerExplicitSolver : public ExplicitSolver {
     }
     return std::nullopt;
   }
+  // A force F added over the step (a constraint's correction) changes the velocities by h M^-1 F
+  // and, as the symplectic step moves with the new velocity, the positions by h^2 M^-1 F. The
+  // forward step moves the positions with the old velocity: nothing corrects them within it.
+  std::optional<StepResponse> stepResponse(double h) const override {
+    if (!symplectic_) return std::nullopt;
+    return StepResponse{1.0, 0.0, h * h, h};
+  }
 
  private:
   bool symplectic_ = true;
@@ -190,7 +197,9 @@ void registerExplicitSolvers(Registry& r) {
   s.category = "solver";
   s.doc = "Explicit Euler as SOFA's: symplectic (velocity first, then positions with the new velocity) by default, "
           "else forward Euler. A lumped mass is inverted node by node; a consistent mass (MeshMatrixMass) is solved "
-          "with the linear solver of the node. Stable only for a step below the period of the stiffest mode.";
+          "with the linear solver of the node. Stable only for a step below the period of the stiffest mode. The "
+          "symplectic step takes constraint corrections (FreeMotionAnimationLoop): a force F over the step moves "
+          "the body by dt^2 M^-1 F.";
   s.add(AttrSpec::boolean("symplectic").def("true").help("update velocities first and move with the new velocity"));
   s.factory = [](BuildContext& c) { return std::make_unique<EulerExplicitSolver>(c); };
   r.add(std::move(s));
