@@ -358,12 +358,20 @@ void SurfaceCollisionModel::addVertex(Contact& c, int v, double w) const {
   }
 }
 
+Eigen::Vector3d SurfaceCollisionModel::faceNormal(int t, const Eigen::Matrix3Xd& x) const {
+  const auto& tri = tris_[t];
+  return (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
+}
+
 Eigen::Vector3d SurfaceCollisionModel::edgeNormal(int e, const Eigen::Matrix3Xd& x) const {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  for (int t : edgeTris_[e]) {
-    const auto& tri = tris_[t];
-    n += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
-  }
+  for (int t : edgeTris_[e]) n += faceNormal(t, x);
+  return n;
+}
+
+Eigen::Vector3d SurfaceCollisionModel::vertexNormal(int v, const Eigen::Matrix3Xd& x) const {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (int t : vertexTris_[v]) n += faceNormal(t, x);
   return n;
 }
 
@@ -479,11 +487,8 @@ bool SurfaceCollisionModel::edgeSees(const Eigen::Matrix3Xd& x, int e, const Eig
       if (t[k] == i1 && t[(k + 1) % 3] == i2) return true;
     return false;
   };
-  auto normal = [&](const std::array<int, 3>& t) -> Eigen::Vector3d {
-    return (x.col(t[1]) - x.col(t[0])).cross(x.col(t[2]) - x.col(t[0])).normalized();
-  };
   const bool firstLeft = runs(tris_[around[0]]);
-  const Eigen::Vector3d n1 = normal(tris_[around[firstLeft ? 1 : 0]]), n2 = normal(tris_[around[firstLeft ? 0 : 1]]);
+  const Eigen::Vector3d n1 = faceNormal(around[firstLeft ? 1 : 0], x), n2 = faceNormal(around[firstLeft ? 0 : 1], x);
   const Eigen::Vector3d mean = (n1 + n2).normalized();
   if (mean.dot(d) < 0) return false;
   // Each face's tangent pointing away from it across the edge.
@@ -501,11 +506,7 @@ bool SurfaceCollisionModel::vertexSees(const Eigen::Matrix3Xd& x, int v, const E
   // SOFA filters a point only where its node also has a line model.
   if (!s.filter || !lines) return true;
   const Eigen::Vector3d p = x.col(v);
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (int t : vertexTris_[v]) {
-    const auto& tri = tris_[t];
-    mean += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
-  }
+  Eigen::Vector3d mean = vertexNormal(v, x);
   if (vertexTris_[v].empty())
     for (int u : vertexNeighbours_[v]) mean += (p - x.col(u)).normalized();
   const double len = d.norm();
@@ -550,8 +551,7 @@ void SurfaceCollisionModel::localMinVertices(const State& st, const SurfaceColli
         if (dist * dist < alarm2 &&
             (touching || (other.vertexSees(y, v, -QP, s, theirs.lines) && triangleSees(x, t, QP, s))))
           addPair(st, other, s, Feature::Face, {{tri[0], 1 - alpha - beta}, {tri[1], alpha}, {tri[2], beta}}, Feature::Vertex,
-                  {{v, 1.0}}, touching ? Eigen::Vector3d(AB.cross(AC).normalized()) : Eigen::Vector3d(QP / dist), dist, here,
-                  there);
+                  {{v, 1.0}}, touching ? faceNormal(t, x) : Eigen::Vector3d(QP / dist), dist, here, there);
       }
       if (!mine.lines) return;
       // The vertex against the interior of the triangle's edges (each edge once per vertex).
@@ -595,12 +595,8 @@ void SurfaceCollisionModel::detectLocalMinDistance(const State& st, const Surfac
           const Eigen::Vector3d d = P - x.col(u);
           const double dist = d.norm();
           if (dist <= touch) {  // coincident vertices: this one's mean face normal
-            Eigen::Vector3d n = Eigen::Vector3d::Zero();
-            for (int t2 : vertexTris_[u]) {
-              const auto& tri = tris_[t2];
-              n += (x.col(tri[1]) - x.col(tri[0])).cross(x.col(tri[2]) - x.col(tri[0])).normalized();
-            }
-            if (n.norm() > 0) addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, n.normalized(), dist, here, there);
+            addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, vertexNormal(u, x).normalized(), dist,
+                    here, there);
           } else if (dist * dist < alarm2 && vertexSees(x, u, d, s, mine.lines) && other.vertexSees(y, v, -d, s, theirs.lines)) {
             addPair(st, other, s, Feature::Vertex, {{u, 1.0}}, Feature::Vertex, {{v, 1.0}}, d / dist, dist, here, there);
           }

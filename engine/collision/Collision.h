@@ -242,8 +242,11 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
                 const ContactSettings& s, std::vector<Contact>& out) const;
   // Appends surface vertex v with weight w to contact c (on a mapped surface: the body's nodes it follows).
   void addVertex(Contact& c, int v, double w) const;
-  // The sum of the outward normals of the faces at edge e, at positions x.
+  // The outward unit normal of triangle t at positions x.
+  Eigen::Vector3d faceNormal(int t, const Eigen::Matrix3Xd& x) const;
+  // The sum of the outward unit normals of the faces at edge e, or around vertex v, at positions x.
   Eigen::Vector3d edgeNormal(int e, const Eigen::Matrix3Xd& x) const;
+  Eigen::Vector3d vertexNormal(int v, const Eigen::Matrix3Xd& x) const;
   // Vertices of `other` against this surface's triangles and edges (one direction of
   // detectLocalMinDistance); vertex contacts go to `there`, their features' to `here`.
   void localMinVertices(const State& st, const SurfaceCollisionModel& other, const ContactSettings& s, Features mine,
