@@ -126,7 +126,7 @@ INSTANTIATE_TEST_SUITE_P(TwoBodyContact, DeformableCubeOnAnObstacle, ::testing::
 // The constraint response: the same cube, with its compliance (UncoupledConstraintCorrection), comes
 // to rest with its bottom exactly at the contact distance (no sink: the gap is a constraint). So it
 // does under SOFA's symplectic EulerExplicitSolver, whose step moves the body by h^2 M^-1 F under a
-// force F added over it. The forward (non-symplectic) step moves positions with the old velocity,
+// force F added over it, rigid or deformable. The forward (non-symplectic) step moves positions with the old velocity,
 // which no correction within the step can reach; a rigid body takes the symplectic step only.
 static std::string constrainedCube(const std::string& solver) {
   std::string cube = rigidCube();
@@ -147,6 +147,25 @@ TEST(TwoBodyContact, UnderTheConstraintResponseARigidCubeRestsAtTheContactDistan
     EXPECT_NEAR(b.w.norm(), 0, 1e-9) << solver;
     EXPECT_NEAR(b.p.x(), 0, 1e-12) << solver;
   }
+  // A deformable cube (8 nodes, springs) under the symplectic explicit step: its bottom nodes
+  // rest exactly at the contact distance (UncoupledConstraintCorrection: the nodes' masses).
+  auto springs = buildScene(io::parseSceneText(world("FrictionContactConstraint", R"(
+  <FreeMotionAnimationLoop/><GenericConstraintSolver tolerance="1e-12"/>
+  <Node name="cube">
+    <EulerExplicitSolver/>
+    <RegularGridTopology n="2 2 2" min="-0.5 -0.5 0.02" max="0.5 0.5 1.02"/>
+    <MechanicalObject name="dofs"/>
+    <UniformMass totalMass="2"/>
+    <MeshSpringForceField stiffness="1e3" damping="5"/>
+    <TriangleCollisionModel/>
+    <UncoupledConstraintCorrection/>
+  </Node>
+)"), "two_body.xml"));
+  Simulation sim(*springs);
+  for (int i = 0; i < 3000; ++i) ASSERT_FALSE(sim.step()) << "step " << i;
+  for (MechanicalObject* m : springs->all<MechanicalObject>())
+    if (m->name() == "dofs")
+      for (int i = 0; i < 4; ++i) EXPECT_NEAR(m->x(sim.state())(2, i), 0.01, 1e-9) << "node " << i;
   try {
     auto scene = buildScene(io::parseSceneText(constrainedCube(R"(<EulerExplicitSolver symplectic="false"/>)"), "two_body.xml"));
     Simulation sim(*scene);
