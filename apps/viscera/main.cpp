@@ -56,6 +56,7 @@ struct RunCommand {
   std::vector<std::string> sets;
   int threads = 0;
   bool quiet = false;
+  bool allNotes = false;
 };
 
 // The scene file with the command line's --set edits applied.
@@ -65,10 +66,12 @@ std::unique_ptr<Scene> loadScene(const std::string& path, const std::vector<std:
   return buildScene(desc);
 }
 
-// Notes from reading and initialising the scene (ignored elements, idle solvers, ...).
-void printNotes(const Scene& scene, bool quiet) {
+// Notes from reading and initialising the scene (ignored elements, idle solvers, ...): the first
+// 20, or all of them.
+void printNotes(const Scene& scene, bool quiet, bool all) {
   if (quiet) return;
-  cli::printNotes(scene.notes());
+  if (all) cli::printNotes(scene.notes(), scene.notes().size());
+  else cli::printNotes(scene.notes());
 }
 
 int cmdRun(const RunCommand& o) {
@@ -109,7 +112,7 @@ int cmdRun(const RunCommand& o) {
   if (!o.fromState.empty()) inputs.push_back(o.fromState);
   for (const auto& [path, option] : outputs)
     if (!path.empty()) cli::requireNotAnInput(path, option, inputs);
-  printNotes(*scene, o.quiet);
+  printNotes(*scene, o.quiet, o.allNotes);
   // Exporters and cameras write into --out: one run at a time.
   std::optional<FolderLock> lock;
   if (!o.out.empty()) lock.emplace(o.out);
@@ -159,10 +162,10 @@ int cmdRun(const RunCommand& o) {
   return kExitOk;
 }
 
-int cmdCheck(const std::string& path, const std::vector<std::string>& sets) {
+int cmdCheck(const std::string& path, const std::vector<std::string>& sets, bool allNotes) {
   auto scene = loadScene(path, sets);
   scene->init();
-  printNotes(*scene, false);
+  printNotes(*scene, false, allNotes);
   int objects = static_cast<int>(scene->all<MechanicalObject>().size());
   std::cout << path << ": ok (" << objects << " mechanical object" << (objects == 1 ? "" : "s") << ", dt = " << scene->dt()
             << ", units " << scene->units().str() << ")\n";
@@ -250,6 +253,7 @@ int main(int argc, char** argv) {
   run->add_option("--save-state", ro.saveState, "write the final state (binary) to continue from with --from-state");
   run->add_option("--from-state", ro.fromState, "start from a state written by --save-state for this scene");
   run->add_flag("--quiet", ro.quiet, "no progress or notes");
+  run->add_flag("--all-notes", ro.allNotes, "print every note (default: the first 20)");
   const char* setHelp = "set an attribute, ADDRESS=VALUE with ADDRESS node/path/component.attribute "
                         "(e.g. phantom/fem.youngModulus=\"3.2 kPa\"); repeatable";
   run->add_option("--set", ro.sets, setHelp);
@@ -258,6 +262,8 @@ int main(int argc, char** argv) {
   auto* check = app.add_subcommand("check", "validate a scene without running it");
   check->add_option("scene", checkScene, "scene file")->required();
   check->add_option("--set", checkSets, setHelp);
+  bool checkAllNotes = false;
+  check->add_flag("--all-notes", checkAllNotes, "print every note (default: the first 20)");
   std::string compName;
   auto* comps = app.add_subcommand("components", "list components and their attributes");
   comps->add_option("name", compName, "one component");
@@ -289,7 +295,7 @@ int main(int argc, char** argv) {
   io::setDataPath(dataPath);
   try {
     if (*run) return cmdRun(ro);
-    if (*check) return cmdCheck(checkScene, checkSets);
+    if (*check) return cmdCheck(checkScene, checkSets, checkAllNotes);
     if (*comps) return cmdComponents(compName);
     if (action) return action();
   } catch (const Error& e) {

@@ -2,6 +2,8 @@
 // errors and a diverging run (exit codes 0 ok, 2 invalid input, 3 diverged).
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -83,6 +85,33 @@ TEST(Cli, CheckWritesNothing) {
   std::vector<std::string> files;
   for (const auto& e : fs::directory_iterator(tmp.path())) files.push_back(e.path().filename().string());
   EXPECT_EQ(files, std::vector<std::string>{"beam.xml"});
+}
+
+// A scene with more notes than a terminal wants: the first 20 and a count, or every one with
+// --all-notes (check and run alike).
+TEST(Cli, NotesAreCutAt20UnlessAllAreAskedFor) {
+  TempDir tmp;
+  std::string scene = "<Node name=\"root\">\n";
+  for (int i = 0; i < 25; ++i) scene += "  <VisualStyle/>\n";
+  scene += "</Node>\n";
+  std::ofstream(tmp / "notes.xml") << scene;
+  auto lines = [](const std::string& text, const std::string& what) {
+    int n = 0;
+    for (size_t p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+    return n;
+  };
+  RunResult cut = runViscera({"check", tmp / "notes.xml"});
+  ASSERT_EQ(cut.rc, 0) << cut;
+  EXPECT_EQ(lines(cut.err, "VisualStyle ignored"), 20) << cut;
+  EXPECT_NE(cut.err.find("... and 5 more notes"), std::string::npos) << cut;
+  for (const char* command : {"check", "run"}) {
+    std::vector<std::string> args = {command, tmp / "notes.xml", "--all-notes"};
+    if (std::string(command) == "run") args.insert(args.end(), {"--steps", "1", "--out", tmp / "out"});
+    RunResult all = runViscera(args);
+    ASSERT_EQ(all.rc, 0) << all;
+    EXPECT_EQ(lines(all.err, "VisualStyle ignored"), 25) << all;
+    EXPECT_EQ(all.err.find("more notes"), std::string::npos) << all;
+  }
 }
 
 TEST(Cli, ComponentsListsEveryComponentAndAlias) {
