@@ -29,10 +29,19 @@ std::string Diverged::str() const {
   return s.str();
 }
 
-MechanicalSystem::MechanicalSystem(Component& owner) {
-  Node& node = owner.node();
-  state_ = node.find<MechanicalObject>();
-  if (!state_) throw owner.error("needs a MechanicalObject in its node");
+namespace {
+MechanicalObject& nodeState(Component& owner) {
+  MechanicalObject* m = owner.node().find<MechanicalObject>();
+  if (!m) throw owner.error("needs a MechanicalObject in its node");
+  return *m;
+}
+}  // namespace
+
+MechanicalSystem::MechanicalSystem(Component& owner) : MechanicalSystem(owner, nodeState(owner)) {}
+
+MechanicalSystem::MechanicalSystem(Component& owner, MechanicalObject& body) {
+  Node& node = body.node();
+  state_ = &body;
   owner.scene().initComponent(*state_);
   const int n = state_->size();
   mass_ = Eigen::VectorXd::Zero(n);

@@ -19,6 +19,8 @@ class MechanicalSystem {
   // Collects what acts on the MechanicalObject of `owner`'s node. Throws a clear error if the
   // node has no MechanicalObject or no mass.
   explicit MechanicalSystem(Component& owner);
+  // The same for `body` in its own node, which `owner` (a solver above it) integrates.
+  MechanicalSystem(Component& owner, MechanicalObject& body);
 
   MechanicalObject& state() const { return *state_; }
   int nodes() const;

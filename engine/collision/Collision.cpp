@@ -14,6 +14,7 @@
 #include "engine/collision/Geometry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidDynamics.h"
 #include "engine/rigid/RigidMapping.h"
 #include "engine/rigid/RigidObject.h"
 #include "solvers/linear/BlockSparseMatrix.h"
@@ -204,8 +205,8 @@ void SurfaceCollisionModel::init() {
   fitBoxes(X, *bvh);
   bvh->tree.build(bvh->boxes);
   bvh0_ = std::move(bvh);
-  // Nothing moves a body without a solver in its node (a solver above moves rigid bodies only).
-  static_ = !rigid_ && !state_->node().find<OdeSolver>();
+  // Nothing moves a body no solver integrates (its node's, or one above that collects it).
+  static_ = !rigid_ && !integratingNode(*state_);
   if (rigid_)
     for (const Node* n = &rigid_->node(); n && !solverAbove_; n = n->parent()) solverAbove_ = n->find<OdeSolver>() != nullptr;
 }

@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "engine/MechanicalSystem.h"
+#include "engine/rigid/RigidDynamics.h"
 #include "engine/collision/Collision.h"
 #include "core/Registry.h"
 #include "core/Scene.h"
@@ -400,13 +401,13 @@ class BilateralConstraint : public Component {
                               std::to_string(kMaxContactNodes) + " nodes of its body");
       p.at = m->inputState();
       // A body nothing integrates holds the point where it is.
-      if (p.at->node().find<OdeSolver>()) p.body = p.at;
+      if (integratingNode(*p.at)) p.body = p.at;
       p.where.count = static_cast<int>(weights.size());
       for (size_t k = 0; k < weights.size(); ++k) {
         p.where.nodes[k] = weights[k].first;
         p.where.w[k] = weights[k].second;
       }
-    } else if (s.node().find<OdeSolver>()) {
+    } else if (integratingNode(s)) {
       p.body = &s;
     }
     return p;

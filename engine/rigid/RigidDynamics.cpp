@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 
 #include "core/Scene.h"
@@ -11,10 +12,6 @@
 
 namespace viscera {
 
-namespace {
-
-// The rigid bodies in the subtree of `n` that no solver below it moves, in scene order; bodies of
-// Vec3d nodes with a mass are collected in `deformable`.
 void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable) {
   for (const auto& child : n.children()) {
     Node& c = *child;
@@ -28,9 +25,21 @@ void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<Mechan
   }
 }
 
-}  // namespace
+const Node* integratingNode(const MechanicalObject& body) {
+  const Node* own = &body.node();
+  if (own->find<OdeSolver>()) return own;
+  for (const Node* n = own->parent(); n; n = n->parent()) {
+    if (!n->find<OdeSolver>()) continue;
+    if (n->find<MechanicalObject>()) return nullptr;  // that solver integrates its own node's body
+    std::vector<RigidObject*> rigid;
+    std::vector<MechanicalObject*> deformable;
+    collectBodies(const_cast<Node&>(*n), rigid, deformable);
+    return std::find(deformable.begin(), deformable.end(), &body) != deformable.end() ? n : nullptr;
+  }
+  return nullptr;
+}
 
-std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& solver) {
+std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& solver, bool deformableToo) {
   Node& node = solver.node();
   if (node.find<MechanicalObject>()) return nullptr;
   std::vector<RigidObject*> found;
@@ -40,7 +49,7 @@ std::unique_ptr<RigidBodyIntegrator> RigidBodyIntegrator::forSolver(Component& s
     std::vector<MechanicalObject*> deformable;
     collectBodies(node, found, deformable);
     if (found.empty()) return nullptr;
-    if (!deformable.empty())
+    if (!deformable.empty() && !deformableToo)
       throw solver.error("moves the rigid bodies below its node, but MechanicalObject '" + deformable.front()->name() +
                          "' (" + deformable.front()->node().path() + ") has a mass and no solver of its own: a "
                          "deformable body needs the solver in its node");

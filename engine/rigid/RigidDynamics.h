@@ -43,14 +43,27 @@ class RigidForce {
 class BuildContext;
 std::unique_ptr<Component> makeRigidRestShapeSprings(BuildContext& c);
 
+class MechanicalObject;
+class Node;
+
+// What a solver in node n with no body of its own moves (SOFA's solver over several bodies): the
+// rigid bodies in its subtree and the Vec3d bodies with a mass in their node (not mapped), each in
+// a node that no solver between moves, in scene order.
+void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable);
+// The node whose ODE solver integrates the deformable `body`: its own node's, or that of a solver
+// above it that collects it (collectBodies); null when nothing integrates it.
+const Node* integratingNode(const MechanicalObject& body);
+
 class RigidBodyIntegrator {
  public:
   // The integrator of the rigid bodies `solver` moves: the one in its node, when that node holds a
   // rigid body and no Vec3d one; or, when its node holds neither (SOFA's solver above several
   // bodies), every rigid body in its subtree that no solver further down moves. Null when there is
   // none; a driven or massless body is held still (with a note). A body with a mass on Vec3d nodes
-  // in such a subtree is refused (its solver belongs in its node); one without a mass is an obstacle.
-  static std::unique_ptr<RigidBodyIntegrator> forSolver(Component& solver);
+  // in such a subtree is refused unless `deformableToo` (its solver belongs in its node); one
+  // without a mass is an obstacle.
+  // `deformableToo`: the solver integrates such deformable bodies itself (EulerImplicitSolver).
+  static std::unique_ptr<RigidBodyIntegrator> forSolver(Component& solver, bool deformableToo = false);
 
   // True when no body moves (all driven or massless).
   bool idle() const;

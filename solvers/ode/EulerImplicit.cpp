@@ -5,9 +5,13 @@
 //   v <- v + dv, x <- x + h v; fixed nodes are projected out of the system.
 // firstOrder (SOFA's first-order system x' = v = M^-1 f, no Rayleigh damping):
 //   (M - a K) v_new = f(x, v),  x <- x + h v_new.
-// In the node of a rigid body it integrates the body (RigidDynamics.h).
+// In the node of a rigid body it integrates the body (RigidDynamics.h). In a node with no body
+// (SOFA's solver over several bodies) it integrates the rigid bodies below it and the deformable
+// ones (collectBodies), the latter as one linear system over all their unknowns.
 #include <cmath>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "engine/MechanicalSystem.h"
 #include "core/Registry.h"
@@ -24,13 +28,13 @@ namespace {
 class EulerImplicitSolver : public Component, public OdeSolver, public Stateful {
  public:
   using Component::Component;
-  // The last velocity change (the next linear solve starts from it) and its iteration count; the
-  // step's matrix is workspace.
+  // The last velocity change (the next linear solve starts from it; the bodies' one after the
+  // other) and its iteration count; the step's matrices are workspace.
   struct Live : ComponentStateOf<Live> {
     Eigen::VectorXd dv;
     int lastIterations = 0;
-    BlockSparseMatrix A;
-    Eigen::Matrix3Xd start;  // positions at the start of the last step (the system's linearisation)
+    std::vector<BlockSparseMatrix> A;  // one per body
+    Eigen::Matrix3Xd start;  // positions at the start of the last step (one body: its linearisation)
     void save(StateWriter& out) const override {
       out.put(dv);
       out.put(lastIterations);
@@ -52,60 +56,116 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       rM_ = rK_ = 0;
     }
     vdamping_ = attrs_.real("vdamping");
-    if ((rigid_ = RigidBodyIntegrator::forSolver(*this))) return;
-    sys_ = std::make_unique<MechanicalSystem>(*this);
+    // The body of its node; or, with none there (SOFA's solver over several bodies), the rigid
+    // bodies below it and the deformable ones, integrated together.
+    rigid_ = RigidBodyIntegrator::forSolver(*this, true);
+    if (node().find<MechanicalObject>()) {
+      if (rigid_) return;
+      systems_.push_back(std::make_unique<MechanicalSystem>(*this));
+    } else {
+      std::vector<RigidObject*> rigid;
+      std::vector<MechanicalObject*> deformable;
+      collectBodies(node(), rigid, deformable);
+      for (MechanicalObject* m : deformable) systems_.push_back(std::make_unique<MechanicalSystem>(*this, *m));
+      if (systems_.empty() && !rigid_) throw error("needs a MechanicalObject in its node");
+    }
+    if (systems_.empty()) return;
     linear_ = findLinearSolver(*this);
-    if (linear_->needsMatrix()) sys_->prepareAssembly();
+    if (systems_.size() > 1) {
+      const std::string& l = dynamic_cast<Component&>(*linear_).typeName();
+      if (l != "CGLinearSolver" && l != "MinResLinearSolver")
+        throw error("integrates " + std::to_string(systems_.size()) + " deformable bodies below its node, which it solves "
+                    "as one system with an iterative solver (CGLinearSolver or MinResLinearSolver); its " + l +
+                    " factorises one body's matrix: give each body its own solver");
+      scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "' integrates " +
+                      std::to_string(systems_.size()) + " deformable bodies below its node as one system");
+    }
+    if (linear_->needsMatrix())
+      for (auto& sys : systems_) sys->prepareAssembly();
   }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
-    if (rigid_) return rigid_->step(st, t, h, stepIndex, rM_);
+    if (rigid_)
+      if (auto failed = rigid_->step(st, t, h, stepIndex, rM_)) return failed;
+    if (systems_.empty()) return std::nullopt;
     Live& l = stateIn<Live>(st);
-    MechanicalObject::Live& s = sys_->state().live(st);
-    const int n = sys_->nodes();
-    l.start = s.x;
-    const Eigen::Matrix3Xd& x0 = l.start;
-    const Eigen::Matrix3Xd v0 = s.v;
-    Eigen::Matrix3Xd& f = s.f;
-    sys_->computeForce(st, s.x, s.v, f);
-
     const double a = tr_ * h;
     const double mFact = firstOrder_ ? 1.0 : 1.0 + a * rM_;
     const double kFact = firstOrder_ ? -a : -a * (a + rK_);
     // Contact stiffness is not Rayleigh damped: its K enters as -a^2 K (and a K v), not
     // -a (a + rK) K, hence the scale a / (a + rK) on the undamped fields.
     const double uScale = a / (a + rK_);
-    Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
-    LinearProblem problem;
-    BlockSparseMatrix& A = l.A;
-    if (linear_->needsMatrix()) {
-      // A = kFact K + mFact M, constrained; K v read from kFact K before the mass joins it.
-      sys_->assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
-      A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
-      if (kFact != 0) Kv *= 1.0 / kFact;
-      else A.setZero();
-      sys_->addMass(A, mFact);
-      sys_->constrain(A);
-      useAssembled(problem, A);
-    } else {
-      sys_->addKdx(st, s.v, Kv, 1.0, uScale);
-      problem.apply = [this, &st, n, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
-        const Eigen::Map<const Eigen::Matrix3Xd> P(p.data(), 3, n);
-        Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
-        sys_->addMdx(P, Q, mFact);
-        sys_->addKdx(st, P, Q, kFact, uScale);
-        sys_->project(Q);
-        q = Eigen::Map<const Eigen::VectorXd>(Q.data(), 3 * n);
-      };
+    const int bodies = static_cast<int>(systems_.size());
+    l.A.resize(static_cast<size_t>(bodies));
+    // Each body's part of the one system: its right-hand side, its operator (A_k, or matrix-free).
+    std::vector<Eigen::Index> offset(static_cast<size_t>(bodies) + 1, 0);
+    std::vector<Eigen::Matrix3Xd> x0(static_cast<size_t>(bodies)), v0(static_cast<size_t>(bodies)), rhs(static_cast<size_t>(bodies));
+    for (int k = 0; k < bodies; ++k) {
+      const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
+      MechanicalObject::Live& s = sys.state().live(st);
+      const int n = sys.nodes();
+      offset[static_cast<size_t>(k) + 1] = offset[static_cast<size_t>(k)] + 3 * n;
+      x0[static_cast<size_t>(k)] = s.x;
+      v0[static_cast<size_t>(k)] = s.v;
+      Eigen::Matrix3Xd& f = s.f;
+      sys.computeForce(st, s.x, s.v, f);
+      Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
+      if (linear_->needsMatrix()) {
+        // A = kFact K + mFact M, constrained; K v read from kFact K before the mass joins it.
+        BlockSparseMatrix& A = l.A[static_cast<size_t>(k)];
+        sys.assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
+        A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
+        if (kFact != 0) Kv *= 1.0 / kFact;
+        else A.setZero();
+        sys.addMass(A, mFact);
+        sys.constrain(A);
+      } else {
+        sys.addKdx(st, s.v, Kv, 1.0, uScale);
+      }
+      Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, n);
+      if (rM_ != 0) sys.addMdx(s.v, Mv, 1.0);
+      // First order: the unknown is the new velocity itself.
+      rhs[static_cast<size_t>(k)] = firstOrder_ ? Eigen::Matrix3Xd(f) : Eigen::Matrix3Xd(h * (f + (a + rK_) * Kv - rM_ * Mv));
+      sys.project(rhs[static_cast<size_t>(k)]);
     }
-    Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, n);
-    if (rM_ != 0) sys_->addMdx(s.v, Mv, 1.0);
-    // First order: the unknown is the new velocity itself.
-    Eigen::Matrix3Xd b = firstOrder_ ? Eigen::Matrix3Xd(f) : Eigen::Matrix3Xd(h * (f + (a + rK_) * Kv - rM_ * Mv));
-    sys_->project(b);
-    Eigen::VectorXd bv = Eigen::Map<const Eigen::VectorXd>(b.data(), 3 * n);
+    if (bodies == 1) l.start = x0.front();
+    LinearProblem problem;
+    if (bodies == 1 && linear_->needsMatrix()) {
+      useAssembled(problem, l.A.front());
+    } else {
+      problem.apply = [this, &st, &l, &offset, bodies, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+        q.resize(p.size());
+        for (int k = 0; k < bodies; ++k) {
+          const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
+          const Eigen::Index o = offset[static_cast<size_t>(k)], len = offset[static_cast<size_t>(k) + 1] - o;
+          if (linear_->needsMatrix()) {
+            l.A[static_cast<size_t>(k)].multiply(p.segment(o, len), q.segment(o, len));
+            continue;
+          }
+          const int n = sys.nodes();
+          const Eigen::Map<const Eigen::Matrix3Xd> P(p.data() + o, 3, n);
+          Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
+          sys.addMdx(P, Q, mFact);
+          sys.addKdx(st, P, Q, kFact, uScale);
+          sys.project(Q);
+          q.segment(o, len) = Eigen::Map<const Eigen::VectorXd>(Q.data(), len);
+        }
+      };
+      if (linear_->needsMatrix()) {
+        problem.diagonal.resize(offset.back());
+        for (int k = 0; k < bodies; ++k) {
+          const BlockSparseMatrix& A = l.A[static_cast<size_t>(k)];
+          for (int i = 0; i < A.blockRows(); ++i)
+            problem.diagonal.segment<3>(offset[static_cast<size_t>(k)] + 3 * i) = A.block(A.diagonalSlot(i)).diagonal();
+        }
+      }
+    }
+    Eigen::VectorXd bv(offset.back());
+    for (int k = 0; k < bodies; ++k)
+      bv.segment(offset[static_cast<size_t>(k)], offset[static_cast<size_t>(k) + 1] - offset[static_cast<size_t>(k)]) =
+          Eigen::Map<const Eigen::VectorXd>(rhs[static_cast<size_t>(k)].data(), rhs[static_cast<size_t>(k)].size());
     Eigen::VectorXd& dv = l.dv;
-    if (dv.size() != 3 * n) dv = Eigen::VectorXd::Zero(3 * n);
+    if (dv.size() != offset.back()) dv = Eigen::VectorXd::Zero(offset.back());
     LinearSolveInfo info = linear_->solve(st, problem, bv, dv);
     l.lastIterations = info.iterations;
     if (!info.ok) {
@@ -113,31 +173,43 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       d.step = stepIndex;
       d.time = t + h;
       d.reason = "linear solver failed: " + info.message;
-      d.object = sys_->state().name();
+      d.object = systems_.front()->state().name();
       return d;
     }
-    if (firstOrder_) s.v = Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
-    else s.v += Eigen::Map<const Eigen::Matrix3Xd>(dv.data(), 3, n);
-    if (vdamping_ > 0) s.v *= std::exp(-h * vdamping_);
-    s.x += h * s.v;
-    if (auto bad = sys_->check(s.x, s.v, stepIndex, t + h)) {
-      // Keep the last good state: nothing bad reaches the outputs.
-      s.x = x0;
-      s.v = v0;
-      return bad;
+    for (int k = 0; k < bodies; ++k) {
+      const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
+      MechanicalObject::Live& s = sys.state().live(st);
+      const Eigen::Map<const Eigen::Matrix3Xd> d(dv.data() + offset[static_cast<size_t>(k)], 3, sys.nodes());
+      if (firstOrder_) s.v = d;
+      else s.v += d;
+      if (vdamping_ > 0) s.v *= std::exp(-h * vdamping_);
+      s.x += h * s.v;
+    }
+    for (int k = 0; k < bodies; ++k) {
+      const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
+      MechanicalObject::Live& s = sys.state().live(st);
+      if (auto bad = sys.check(s.x, s.v, stepIndex, t + h)) {
+        // Keep the last good state: nothing bad reaches the outputs.
+        for (int j = 0; j < bodies; ++j) {
+          MechanicalObject::Live& sj = systems_[static_cast<size_t>(j)]->state().live(st);
+          sj.x = x0[static_cast<size_t>(j)];
+          sj.v = v0[static_cast<size_t>(j)];
+        }
+        return bad;
+      }
     }
     return std::nullopt;
   }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }
   const Eigen::Matrix3Xd* linearisedAt(const State& s) const override {
     const Live& l = stateIn<Live>(s);
-    return rigid_ || l.start.cols() == 0 ? nullptr : &l.start;
+    return systems_.size() != 1 || l.start.cols() == 0 ? nullptr : &l.start;
   }
   // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F (first order:
   // A v = F, so h A^-1 F and A^-1 F).
   std::optional<StepResponse> stepResponse(double h) const override {
     // Rigid bodies: (1 + h rM) M dV = h F, p += h v (no stiffness of their own).
-    if (rigid_) return StepResponse{1.0 + h * rM_, 0.0, h * h, h};
+    if (systems_.empty()) return StepResponse{1.0 + h * rM_, 0.0, h * h, h};
     const double a = tr_ * h;
     if (firstOrder_) return StepResponse{1.0, -a, h, 1.0};
     return StepResponse{1.0 + a * rM_, -a * (a + rK_), h * h, h};
@@ -147,8 +219,8 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   double rM_ = 0, rK_ = 0, vdamping_ = 0;
   double tr_ = 1.0;  // 1/2 with the trapezoidal scheme
   bool firstOrder_ = false;
-  std::unique_ptr<RigidBodyIntegrator> rigid_;  // set in a rigid body's node
-  std::unique_ptr<MechanicalSystem> sys_;
+  std::unique_ptr<RigidBodyIntegrator> rigid_;  // the rigid bodies it moves, if any
+  std::vector<std::unique_ptr<MechanicalSystem>> systems_;  // the deformable bodies it moves
   LinearSolver* linear_ = nullptr;
 };
 
@@ -201,7 +273,9 @@ void registerEulerImplicit(Registry& r) {
   s.aliases = {"EulerImplicit"};
   s.category = "solver";
   s.doc = "Implicit (backward) Euler with Rayleigh damping, linearised: one linear solve per step (SOFA's "
-          "formulation). The linear solver is the one in the same node.";
+          "formulation). The linear solver is the one in the same node. In a node without a MechanicalObject it "
+          "integrates the bodies below it that no other solver moves: rigid bodies, and deformable ones (a mass in "
+          "their node) as one system solved by an iterative linear solver.";
   s.add(AttrSpec::real("rayleighStiffness").def("0").atLeast(0).help("Rayleigh damping proportional to stiffness"));
   s.add(AttrSpec::real("rayleighMass").def("0").atLeast(0).help("Rayleigh damping proportional to mass"));
   s.add(AttrSpec::boolean("firstOrder").def("false").help(

@@ -87,7 +87,8 @@ TEST(RigidDynamics, FreeFallIsSymplecticEulerExactly) {
 
 // SOFA's solver above several bodies: one EulerImplicitSolver in a parent node moves each rigid body
 // below it as its own solver would; a massless Vec3d node beside them stays where it is (an
-// obstacle), and a deformable body with a mass there is refused, named.
+// obstacle), and a deformable body with a mass there falls with them (an explicit solver, which
+// moves rigid bodies only, refuses it, named).
 TEST(RigidDynamics, ASolverAboveMovesEveryRigidBodyBelowIt) {
   auto scene = build(R"(<Node name="root" dt="0.01" gravity="0 0 -9.81">
   <Node name="bodies">
@@ -114,13 +115,26 @@ TEST(RigidDynamics, ASolverAboveMovesEveryRigidBodyBelowIt) {
   }
   EXPECT_EQ(state(*scene, "floorState").x(sim.state()).col(1), Vector3d(1, 0, 0));
 
-  const std::string why = errorOf(R"(<Node name="root" dt="0.01">
+  // A deformable body with a mass beside them: EulerImplicitSolver integrates it too (one system
+  // of the deformable bodies below it); an explicit solver moves rigid bodies only and says so.
+  const std::string mixed = R"(<Node name="root" dt="0.01" gravity="0 0 -9.81">
   <Node name="bodies">
-    <EulerImplicitSolver/>
+    SOLVER
     <Node name="a"><MechanicalObject template="Rigid3d" position="0 0 3 0 0 0 1"/><UniformMass totalMass="1"/></Node>
     <Node name="soft"><MechanicalObject name="softState" position="0 0 0  1 0 0"/><UniformMass totalMass="1"/></Node>
   </Node>
-</Node>)");
+</Node>)";
+  auto with = [&](const std::string& solver) {
+    std::string text = mixed;
+    return text.replace(text.find("SOLVER"), 6, solver);
+  };
+  auto both = build(with("<EulerImplicitSolver/><CGLinearSolver iterations=\"10\"/>"));
+  Simulation sim2(*both);
+  for (int i = 0; i < n; ++i) ASSERT_FALSE(sim2.step());
+  EXPECT_NEAR(both->all<RigidObject>().front()->live(sim2.state()).p.z(), 3 + h * h * g * n * (n + 1) / 2.0, 1e-12);
+  for (int i = 0; i < 2; ++i)
+    EXPECT_NEAR(state(*both, "softState").x(sim2.state())(2, i), h * h * g * n * (n + 1) / 2.0, 1e-9) << "node " << i;
+  const std::string why = errorOf(with("<EulerExplicitSolver/>"));
   EXPECT_NE(why.find("'softState' (/root/bodies/soft) has a mass and no solver of its own"), std::string::npos) << why;
 }
 
