@@ -125,6 +125,8 @@ class OdeSolver {
   // The response to a force added during a step of size dt; nothing if the solver has no
   // linear system (or is idle).
   virtual std::optional<StepResponse> stepResponse(double dt) const { return std::nullopt; }
+  // The same for the rigid bodies it moves, where their step differs from its deformable bodies'.
+  virtual std::optional<StepResponse> rigidStepResponse(double dt) const { return stepResponse(dt); }
   // Advances from time t to t + dt; returns a failure instead of writing bad state.
   virtual std::optional<Diverged> step(State& s, double t, double dt, int stepIndex) const = 0;
   // Statistics of the last step (linear iterations, residual), for summaries.

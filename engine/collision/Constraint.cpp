@@ -49,6 +49,9 @@ class ConstraintCorrection : public Component, public Stateful {
                                                                                             : Mode::Precomputed;
     sys_ = std::make_unique<MechanicalSystem>(*this);
     auto* ode = node().find<OdeSolver>();
+    if (!ode && integratingNode(sys_->state()))
+      throw error("its body is integrated by the solver in " + integratingNode(sys_->state())->path() +
+                  " above it, with other bodies; a constraint correction needs the body's own solver in its node");
     if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver, symplectic EulerExplicitSolver or StaticSolver) in its node");
     scene().initComponent(dynamic_cast<Component&>(*ode));
     ode_ = ode;
@@ -293,7 +296,7 @@ class RigidConstraintCorrection : public Component {
  private:
   StepResponse response(double h) const {
     if (!ode_) throw error("rigid body '" + body_->name() + "' has no ODE solver in its node or above it");
-    const auto r = ode_->stepResponse(h);
+    const auto r = ode_->rigidStepResponse(h);
     if (!r || !(r->xFactor > 0))
       throw error("the solver moving rigid body '" + body_->name() +
                   "' gives no step response (use EulerImplicitSolver, or EulerExplicitSolver with symplectic=\"true\")");

@@ -18,6 +18,7 @@
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidDynamics.h"
+#include "engine/rigid/RigidObject.h"
 #include "solvers/linear/LinearSolver.h"
 #include "solvers/ode/OdeCommon.h"
 
@@ -59,8 +60,8 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     // The body of its node; or, with none there (SOFA's solver over several bodies), the rigid
     // bodies below it and the deformable ones, integrated together.
     rigid_ = RigidBodyIntegrator::forSolver(*this, true);
+    if (node().find<RigidObject>()) return;  // a rigid body's own solver: that body alone
     if (node().find<MechanicalObject>()) {
-      if (rigid_) return;
       systems_.push_back(std::make_unique<MechanicalSystem>(*this));
     } else {
       std::vector<RigidObject*> rigid;
@@ -200,6 +201,9 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     }
     return std::nullopt;
   }
+  // Rigid bodies: (1 + h rM) M dV = h F, p += h v (no stiffness of their own; their step is the
+  // same whatever the scheme of the deformable ones).
+  std::optional<StepResponse> rigidStepResponse(double h) const override { return StepResponse{1.0 + h * rM_, 0.0, h * h, h}; }
   int lastLinearIterations(const State& s) const override { return stateIn<Live>(s).lastIterations; }
   const Eigen::Matrix3Xd* linearisedAt(const State& s) const override {
     const Live& l = stateIn<Live>(s);
@@ -208,8 +212,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   // A dv = h F, x += h v: positions move by h^2 A^-1 F, velocities by h A^-1 F (first order:
   // A v = F, so h A^-1 F and A^-1 F).
   std::optional<StepResponse> stepResponse(double h) const override {
-    // Rigid bodies: (1 + h rM) M dV = h F, p += h v (no stiffness of their own).
-    if (systems_.empty()) return StepResponse{1.0 + h * rM_, 0.0, h * h, h};
+    if (systems_.empty()) return rigidStepResponse(h);
     const double a = tr_ * h;
     if (firstOrder_) return StepResponse{1.0, -a, h, 1.0};
     return StepResponse{1.0 + a * rM_, -a * (a + rK_), h * h, h};
