@@ -60,9 +60,10 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     // The body of its node; or, with none there (SOFA's solver over several bodies), the rigid
     // bodies below it and the deformable ones, integrated together.
     rigid_ = RigidBodyIntegrator::forSolver(*this, true);
-    if (node().find<RigidObject>()) return;  // a rigid body's own solver: that body alone
     if (node().find<MechanicalObject>()) {
       systems_.push_back(std::make_unique<MechanicalSystem>(*this));
+    } else if (node().find<RigidObject>()) {
+      return;  // a rigid body's own solver: that body alone
     } else {
       std::vector<RigidObject*> rigid;
       std::vector<MechanicalObject*> deformable;
