@@ -12,9 +12,9 @@
 
 namespace viscera {
 
-void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable) {
+void collectBodies(const Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable) {
   for (const auto& child : n.children()) {
-    Node& c = *child;
+    const Node& c = *child;
     if (!c.active() || c.find<OdeSolver>()) continue;  // inactive, or moved by its own solver
     if (RigidObject* b = c.find<RigidObject>(); b && !c.find<MechanicalObject>()) {
       rigid.push_back(b);
@@ -33,7 +33,7 @@ const Node* integratingNode(const MechanicalObject& body) {
     if (n->find<MechanicalObject>()) return nullptr;  // that solver integrates its own node's body
     std::vector<RigidObject*> rigid;
     std::vector<MechanicalObject*> deformable;
-    collectBodies(const_cast<Node&>(*n), rigid, deformable);
+    collectBodies(*n, rigid, deformable);
     return std::find(deformable.begin(), deformable.end(), &body) != deformable.end() ? n : nullptr;
   }
   return nullptr;

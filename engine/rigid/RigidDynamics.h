@@ -49,7 +49,7 @@ class Node;
 // What a solver in node n with no body of its own moves (SOFA's solver over several bodies): the
 // rigid bodies in its subtree and the Vec3d bodies with a mass in their node (not mapped), each in
 // a node that no solver between moves, in scene order.
-void collectBodies(Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable);
+void collectBodies(const Node& n, std::vector<RigidObject*>& rigid, std::vector<MechanicalObject*>& deformable);
 // The node whose ODE solver integrates the deformable `body`: its own node's, or that of a solver
 // above it that collects it (collectBodies); null when nothing integrates it.
 const Node* integratingNode(const MechanicalObject& body);
