@@ -127,6 +127,21 @@ Eigen::Matrix3d stress(const ElementRest& e, const Mat34& U) {
   return e.lame.stress(U * e.G.transpose());
 }
 
+Mat34 plasticForce(const ElementRest& e, const Mat34& U, const Plasticity& law, Eigen::Ref<Voigt> P) {
+  const Eigen::Matrix3d H = U * e.G.transpose();
+  const Voigt total = (Voigt() << H(0, 0), H(1, 1), H(2, 2), H(0, 1) + H(1, 0), H(1, 2) + H(2, 1), H(2, 0) + H(0, 2)).finished();
+  const double scale = 6.0 * e.volume;  // SOFA's strain is 6 V times this one
+  const Voigt elastic = total - P;
+  if (scale * scale * elastic.squaredNorm() > law.yield * law.yield) P += law.creep * elastic;
+  const double n2 = scale * scale * P.squaredNorm();
+  if (n2 > law.max * law.max) P *= law.max / std::sqrt(n2);
+  const Voigt r = total - P;
+  Eigen::Matrix3d eps;
+  eps << r[0], 0.5 * r[3], 0.5 * r[5], 0.5 * r[3], r[1], 0.5 * r[4], 0.5 * r[5], 0.5 * r[4], r[2];
+  const Eigen::Matrix3d sigma = e.lame.lambda * eps.trace() * Eigen::Matrix3d::Identity() + 2.0 * e.lame.mu * eps;
+  return -e.volume * sigma * e.G;
+}
+
 double vonMises(const Eigen::Matrix3d& s) {
   const double a = s(0, 0) - s(1, 1), b = s(1, 1) - s(2, 2), c = s(2, 2) - s(0, 0);
   return std::sqrt(0.5 * (a * a + b * b + c * c) + 3.0 * (s(0, 1) * s(0, 1) + s(1, 2) * s(1, 2) + s(2, 0) * s(2, 0)));

@@ -70,6 +70,21 @@ inline Mat34 elasticForce(const ElementRest& e, const Mat34& U) {
   return -e.volume * e.lame.stress(U * e.G.transpose()) * e.G;
 }
 
+// SOFA's plasticity of linear tetrahedra (TetrahedronFEMForceField plasticMaxThreshold,
+// plasticYieldThreshold, plasticCreep): each element keeps a plastic strain P that the elastic law
+// does not see. SOFA measures strains as its strain-displacement product gives them, six times the
+// element's volume times the strain (engineering shears), so the thresholds are compared with
+// 6 V |strain|: they are volumes, and depend on the element's size as in SOFA.
+struct Plasticity {
+  double yield = 1e-4, max = 0, creep = 0.9;
+  bool on() const { return max > 0; }  // SOFA: plasticity acts only with a positive max threshold
+};
+using Voigt = Eigen::Matrix<double, 6, 1>;  // xx yy zz, engineering xy yz zx
+// Updates P from the local displacements U (each force evaluation, as SOFA's: where the elastic
+// strain exceeds the yield threshold, P gains creep times it; P is then capped at the max
+// threshold) and returns the local nodal forces of the remaining elastic strain.
+Mat34 plasticForce(const ElementRest& e, const Mat34& U, const Plasticity& law, Eigen::Ref<Voigt> P);
+
 // Cauchy stress (linear) for local displacements U.
 Eigen::Matrix3d stress(const ElementRest& e, const Mat34& U);
 double vonMises(const Eigen::Matrix3d& sigma);

@@ -29,6 +29,10 @@ void TetrahedronFEMForceField::init() {
     throw error("updateStiffnessMatrix", "element matrices are built once on the rest shape; only false is handled");
   exact_ = spec().find("exactTangent") && attrs_.boolean("exactTangent");
   if (svd_ && exact_) throw error("exactTangent", "is for methods large and polar; svd uses SOFA's tangent");
+  if (spec().find("plasticMaxThreshold"))
+    plasticity_ = {attrs_.real("plasticYieldThreshold"), attrs_.real("plasticMaxThreshold"), attrs_.real("plasticCreep")};
+  if (plasticity_.on() && exact_)
+    throw error("exactTangent", "is the derivative of the elastic force; with plasticity (plasticMaxThreshold > 0) use SOFA's tangent");
   tets_ = elementTetrahedra(contextTopology(*this));
   const int n = state_->size();
   for (int e = 0; e < tets_.cols(); ++e)
@@ -75,12 +79,14 @@ Mat34 TetrahedronFEMForceField::gather(const Eigen::Matrix3Xd& x, int e) const {
 std::unique_ptr<ComponentState> TetrahedronFEMForceField::initialState() const {
   auto l = std::make_unique<Live>();
   l->rot = rot0_;
+  if (plasticity_.on()) l->plastic.setZero(6, tets_.cols());
   return l;
 }
 
 void TetrahedronFEMForceField::Live::load(StateReader& in) {
   in.getSameSize(rot, "element frames");
   in.get(xLast);
+  in.get(plastic);
 }
 
 void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&,
@@ -88,6 +94,17 @@ void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, con
   Live& l = live(s);
   if (exact_) l.xLast = x;
   std::vector<Eigen::Matrix3d>& rot = l.rot;
+  if (plasticity_.on()) {
+    // Element by element: each updates its plastic strain from its local displacement.
+    forEachColored(*colors_, [&](int e) {
+      const Mat34 xe = gather(x, e);
+      rot[e] = svd_ ? fem::frameSvd(rest_[e], xe) : fem::frame(method_, xe);
+      const Mat34 U = fem::localPositions(svd_ ? fem::Method::Polar : method_, rot[e], xe) - rest_[e].X;
+      const Mat34 fe = rot[e].transpose() * fem::plasticForce(rest_[e], U, plasticity_, l.plastic.col(e));
+      for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
+    });
+    return;
+  }
   if (method_ == fem::Method::Large && !svd_) {
     forEachColoredRun(*colors_, [&](int first, int count) {
       fem::addLargeTetrahedraForces(x.data(), tets_.data(), first, count, rest_, lanes_, rot.data(), f.data());
@@ -220,11 +237,21 @@ void registerTetrahedronFEM(Registry& r) {
           "from its edges (SOFA's default); polar: corotational with the polar decomposition of the edge "
           "matrix; svd: polar, except that an inverted or nearly flat element (volume ratio below 1e-6) takes "
           "the rotation of the SVD of its deformation gradient, which turns it back (SOFA's svd). The implicit solve "
-          "uses R^T K0 R as SOFA does, or the exact tangent with exactTangent (large, polar).";
+          "uses R^T K0 R as SOFA does, or the exact tangent with exactTangent (large, polar). With plasticMaxThreshold > 0, "
+          "SOFA's plasticity: each element keeps a plastic strain that creeps from the elastic strain above the yield "
+          "threshold and is capped at the max threshold (strains measured as SOFA's, 6 V |strain|).";
   s.add(AttrSpec::reals("youngModulus").def("5000").above(0).unit(Dimension::pressure()).linked().help("Young's modulus: one value, or one per tetrahedron (or a link such as @young.outputValues)"));
   s.add(AttrSpec::real("poissonRatio").def("0.45").above(-1).below(0.5).help("Poisson's ratio, in (-1, 0.5)"));
   s.add(AttrSpec::choice("method", {"large", "small", "polar", "svd"}).def("large").help("small | large | polar | svd"));
   s.add(AttrSpec::boolean("exactTangent").def("false").help("use the exact derivative of the corotational force (Newton)"));
+  s.add(AttrSpec::real("plasticMaxThreshold").def("0").atLeast(0).unit(Dimension{3, 0, 0}).help(
+      "SOFA's plasticity: the largest plastic strain, as SOFA measures it (6 V |strain|, so a volume); 0 (default) turns "
+      "plasticity off"));
+  s.add(AttrSpec::real("plasticYieldThreshold").def("0.0001").atLeast(0).unit(Dimension{3, 0, 0}).help(
+      "SOFA's plasticity: the elastic strain (6 V |strain|) above which it creeps into plastic strain"));
+  s.add(AttrSpec::real("plasticCreep").def("0.9").atLeast(0).atMost(1).help(
+      "SOFA's plasticity: the share of the elastic strain above the yield threshold that becomes plastic at each force "
+      "evaluation (so it depends on the time step)"));
   s.add(AttrSpec::boolean("updateStiffnessMatrix").def("false").help(
       "SOFA's rebuild of the element matrices from the rotated shape each step; only false (the rest shape's) is handled"));
   s.add(AttrSpec::link("topology").help("tetrahedral topology (default: the last one in the node, or the grid)"));

@@ -26,9 +26,11 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   struct Live : ComponentStateOf<Live> {
     std::vector<Eigen::Matrix3d> rot;  // frame of each element at the last addForce
     Eigen::Matrix3Xd xLast;            // positions of the last addForce (exact tangent)
+    Eigen::Matrix<double, 6, Eigen::Dynamic> plastic;  // plastic strain of each element (fem::Plasticity), if on
     void save(StateWriter& out) const override {
       out.put(rot);
       out.put(xLast);
+      out.put(plastic);
     }
     void load(StateReader& in) override;
   };
@@ -45,6 +47,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   void nodeRotations(const State& s, std::vector<Eigen::Matrix3d>& R) const override;
 
   fem::Method method() const { return method_; }
+  const fem::Plasticity& plasticity() const { return plasticity_; }
   const TetList& tetrahedra() const { return tets_; }
   // Von Mises stress per element at x.
   Eigen::VectorXd vonMises(const Eigen::Matrix3Xd& x) const;
@@ -64,6 +67,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   fem::Method method_ = fem::Method::Large;
   bool svd_ = false;  // SOFA's svd: polar, with inverted or flat elements turned back (fem::frameSvd)
   bool exact_ = false;
+  fem::Plasticity plasticity_;
   TetList tets_;
   std::vector<fem::ElementRest> rest_;
   std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest

@@ -410,3 +410,74 @@ TEST(TetKernel, SvdFrameTurnsAnInvertedElementBack) {
   EXPECT_LT((fem::frameSvd(rest, xr) - Rsvd * Q.transpose()).norm(), 1e-12);
   EXPECT_LT((fem::elementForceInFrame(rest, xr, fem::frameSvd(rest, xr)) - Q * f).norm(), 1e-9 * f.norm());
 }
+
+// SOFA's plasticity, against the rule as SOFA writes it, in SOFA's units: the strain-displacement
+// product J^T D is 6 V B (rest - current), the plastic strain lives in those units, and the force is
+// J K (J^T D - P) = -V B^T C (B u - p) with p the plastic strain in true units. A sequence of local
+// displacements of growing and shrinking size drives the element below the yield threshold, across
+// it and into the cap; every force agrees to 1e-10 relative (rounding: ~1e-14).
+TEST(FemKernel, PlasticityFollowsSofasRule) {
+  Rng r(808);
+  int crossed = 0, capped = 0;
+  for (int t = 0; t < kTets; ++t) {
+    double L, E, nu;
+    const Mat34 Xw = randomTet(r, &L);
+    const auto lame = randomLame(r, &E, &nu);
+    const auto e = fem::restElement(Method::Large, Xw, lame);
+    Eigen::Matrix4d Pm;
+    for (int k = 0; k < 4; ++k) Pm.row(k) << 1, e.X(0, k), e.X(1, k), e.X(2, k);
+    const Eigen::Matrix4d C = Pm.inverse();
+    Eigen::Matrix<double, 6, 12> B = Eigen::Matrix<double, 6, 12>::Zero();
+    for (int k = 0; k < 4; ++k) {
+      const double bx = C(1, k), by = C(2, k), bz = C(3, k);
+      B(0, 3 * k) = bx, B(1, 3 * k + 1) = by, B(2, 3 * k + 2) = bz;
+      B(3, 3 * k) = by, B(3, 3 * k + 1) = bx;
+      B(4, 3 * k + 1) = bz, B(4, 3 * k + 2) = by;
+      B(5, 3 * k) = bz, B(5, 3 * k + 2) = bx;
+    }
+    Eigen::Matrix<double, 6, 6> D = Eigen::Matrix<double, 6, 6>::Zero();
+    const double c = E / ((1 + nu) * (1 - 2 * nu));
+    D.topLeftCorner<3, 3>().setConstant(c * nu);
+    for (int i = 0; i < 3; ++i) D(i, i) = c * (1 - nu), D(3 + i, 3 + i) = c * (1 - 2 * nu) / 2;
+    const double V = e.volume;
+    // Thresholds in SOFA's units (6 V |strain|): yield at a strain of 2 %, cap at 5 %.
+    const fem::Plasticity law{0.02 * 6 * V, 0.05 * 6 * V, r.uniform(0.2, 1.0)};
+    const Mat34 dir = r.mat34(1.0);
+    const double unit = 1.0 / (B * flat(dir)).norm();  // the size of dir giving a strain of norm 1
+    fem::Voigt P = fem::Voigt::Zero();
+    Eigen::Matrix<double, 6, 1> sofaP = Eigen::Matrix<double, 6, 1>::Zero();
+    for (double size : {0.01, 0.03, 0.06, 0.12, 0.12, 0.04, 0.0, -0.05}) {
+      const Mat34 U = size * unit * dir;
+      const Eigen::Matrix<double, 6, 1> JtD = 6 * V * (B * (-flat(U)));
+      const Eigen::Matrix<double, 6, 1> elastic = JtD - sofaP;
+      if (elastic.squaredNorm() > law.yield * law.yield) sofaP += law.creep * elastic, ++crossed;
+      if (sofaP.squaredNorm() > law.max * law.max) sofaP *= law.max / sofaP.norm(), ++capped;
+      const Vec12 expected = -V * B.transpose() * D * (B * flat(U) + sofaP / (6 * V));
+      const Mat34 f = fem::plasticForce(e, U, law, P);
+      EXPECT_LT((flat(f) - expected).norm(), 1e-10 * expected.norm() + 1e-14) << "tet " << t << " size " << size;
+      EXPECT_LT((P + sofaP / (6 * V)).norm(), 1e-10 * (1 + P.norm())) << "tet " << t;
+    }
+  }
+  EXPECT_GT(crossed, kTets);  // the yield threshold was crossed ...
+  EXPECT_GT(capped, kTets);   // ... and the cap reached, in most elements
+}
+
+// Fully plastic creep: a displacement beyond the yield threshold becomes the element's new rest
+// shape in one evaluation (zero force there, the elastic force of the difference elsewhere); below
+// the threshold the element is elastic.
+TEST(FemKernel, PlasticCreepOfOneMovesTheRestShape) {
+  Rng r(909);
+  const Mat34 Xw = randomTet(r);
+  const auto e = fem::restElement(Method::Small, Xw, randomLame(r));
+  const fem::Plasticity law{1e-3 * 6 * e.volume, 1e6, 1.0};
+  fem::Voigt P = fem::Voigt::Zero();
+  const Mat34 tiny = 1e-6 * r.mat34(1.0);
+  EXPECT_LT((fem::plasticForce(e, tiny, law, P) - fem::elasticForce(e, tiny)).norm(), 1e-12 * fem::elasticForce(e, tiny).norm());
+  EXPECT_EQ(P.norm(), 0.0);
+  const Mat34 U = 0.05 * r.mat34(1.0);
+  const Mat34 f = fem::plasticForce(e, U, law, P);
+  EXPECT_LT(f.norm(), 1e-12 * fem::elasticForce(e, U).norm());
+  EXPECT_GT(P.norm(), 0.0);
+  const Mat34 W = U + tiny;  // near the new rest shape: elastic again, from it
+  EXPECT_LT((fem::plasticForce(e, W, law, P) - fem::elasticForce(e, tiny)).norm(), 1e-9 * fem::elasticForce(e, tiny).norm());
+}
