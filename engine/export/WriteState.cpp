@@ -1,4 +1,4 @@
-// WriteState (SOFA's): the state of the node's MechanicalObject at chosen times, in SOFA's dump
+// WriteState (SOFA's): the state of the node's MechanicalObject (Vec3d or Rigid3d) at chosen times, in SOFA's dump
 // format (io/scene/StateDump.h), which its regression references use and `viscera sofa-suite`
 // reads. Frames are written as the run goes into a temporary file that takes the dump's name at
 // the end of the run (also after a divergence, with the good frames).
@@ -11,6 +11,7 @@
 #include "core/Registry.h"
 #include "core/Scene.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidObject.h"
 #include "io/scene/StateDump.h"
 
 namespace viscera {
@@ -21,7 +22,7 @@ class WriteState : public Component, public Observer {
  public:
   using Component::Component;
   void init() override {
-    state_ = &contextState(*this);
+    findState();
     period_ = attrs_.real("period");
     times_ = attrs_.reals("time");
     if (times_.empty()) throw error("time", "needs at least one time to write at");
@@ -61,25 +62,59 @@ class WriteState : public Component, public Observer {
     char head[64];
     std::snprintf(head, sizeof head, "T= %.17g\n", t);
     std::string text = head;
-    auto line = [&](const char* key, const Eigen::Matrix3Xd& m) {
+    auto line = [&](const char* key, const auto& m) {
       std::ostringstream out;
       out.precision(17);
       out << "  " << key << "=";
       for (Eigen::Index i = 0; i < m.size(); ++i) out << ' ' << m.data()[i];
       text += out.str() + "\n";
     };
-    if (attrs_.boolean("writeX")) line("X", state_->x(s));
-    if (attrs_.boolean("writeX0")) line("X0", state_->x0);
-    if (attrs_.boolean("writeV")) line("V", state_->v(s));
-    if (attrs_.boolean("writeF")) line("F", state_->live(s).f);
+    if (rigid_) {
+      // SOFA's Rigid3 coordinates: position then quaternion (x y z w); velocities: linear then angular.
+      const RigidObject::Live& b = rigid_->live(s);
+      if (attrs_.boolean("writeX")) line("X", pose(b.p, b.q));
+      if (attrs_.boolean("writeX0")) line("X0", pose(rigid_->p0, rigid_->q0));
+      if (attrs_.boolean("writeV")) line("V", (Eigen::Matrix<double, 3, 2>() << b.v, b.w).finished());
+    } else {
+      if (attrs_.boolean("writeX")) line("X", state_->x(s));
+      if (attrs_.boolean("writeX0")) line("X0", state_->x0);
+      if (attrs_.boolean("writeV")) line("V", state_->v(s));
+      if (attrs_.boolean("writeF")) line("F", state_->live(s).f);
+    }
     writer_->append(text);
+  }
+  static Eigen::Matrix<double, 7, 1> pose(const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+    return (Eigen::Matrix<double, 7, 1>() << p, q.x(), q.y(), q.z(), q.w()).finished();
+  }
+  // The object to write: `mstate` if set, else the nearest MechanicalObject or rigid body in the
+  // node or above.
+  void findState() {
+    Component* c = nullptr;
+    if (attrs_.isSet("mstate")) {
+      c = linkedComponent("mstate");
+    } else {
+      for (const Node* n = &node(); n && !c; n = n->parent())
+        for (const auto& comp : n->components())
+          if (dynamic_cast<MechanicalObject*>(comp.get()) || dynamic_cast<RigidObject*>(comp.get())) {
+            c = comp.get();
+            break;
+          }
+      if (!c) throw error("no MechanicalObject in its node or above");
+    }
+    state_ = dynamic_cast<MechanicalObject*>(c);
+    rigid_ = dynamic_cast<RigidObject*>(c);
+    if (!state_ && !rigid_) throw error("mstate", "does not link to a MechanicalObject");
+    scene().initComponent(*c);
+    if (rigid_ && attrs_.boolean("writeF"))
+      throw error("writeF", "a rigid body keeps no force vector to write; write its positions and velocities");
   }
   void flush() {
     if (writer_) writer_->finish();
     writer_.reset();
   }
 
-  MechanicalObject* state_ = nullptr;
+  MechanicalObject* state_ = nullptr;  // one of these two
+  RigidObject* rigid_ = nullptr;
   double period_ = 0;
   std::vector<double> times_;
   size_t next_ = 0;
@@ -93,7 +128,8 @@ void registerWriteState(Registry& r) {
   ComponentSpec s;
   s.name = "WriteState";
   s.category = "output";
-  s.doc = "Writes the node's MechanicalObject at chosen times in SOFA's state dump format (T=, X=, V=, F= lines; "
+  s.doc = "Writes the node's MechanicalObject (Vec3d, or Rigid3d: position and quaternion x y z w, linear and "
+          "angular velocity) at chosen times in SOFA's state dump format (T=, X=, V=, F= lines; "
           "gzip-compressed when the name ends in .gz), in the output folder, as SOFA's WriteState: from the first "
           "`time` every `period`, or at each listed time. The dump takes its name at the end of the run (a temporary "
           "file beside it meanwhile).";

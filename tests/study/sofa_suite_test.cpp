@@ -233,6 +233,46 @@ TEST(SofaSuite, SofasRegressionScenesThatPassStayPassing) {
   EXPECT_EQ(run, static_cast<int>(passing.size()));
 }
 
+// WriteState on a rigid body writes SOFA's Rigid3 coordinates (position, quaternion x y z w) and
+// velocities (linear, angular): a body spinning about z at 2 rad/s while it falls, under symplectic
+// Euler, is at z = 3 - h^2 g N (N + 1) / 2 with the quaternion of the angle 2 h N; writeF is refused.
+TEST(SofaSuite, WriteStateWritesARigidBody) {
+  TempDir dir;
+  const std::string scene = R"(<Node name="root" dt="0.01" gravity="0 0 -10">
+  <EulerExplicitSolver/>
+  <MechanicalObject template="Rigid3d" name="body" position="1 2 3 0 0 0 1" velocity="0 0 0 0 0 2"/>
+  <UniformMass totalMass="1"/>
+  <WriteState filename="body.txt" time="0.05" writeV="true"/>
+</Node>)";
+  write(dir / "spin.scn", scene);
+  auto built = buildScene(io::readScene(dir / "spin.scn"));
+  built->setOutputDirectory(dir / "out");
+  {
+    Simulation sim(*built);
+    sim.begin();
+    for (int k = 0; k < 5; ++k) ASSERT_FALSE(sim.step());
+    sim.end();
+  }
+  const auto frames = study::readStateDump((fs::path(dir / "out") / "body.txt").string());
+  ASSERT_EQ(frames.size(), 1u);
+  ASSERT_EQ(frames[0].x.size(), 7u);
+  ASSERT_EQ(frames[0].v.size(), 6u);
+  const int n = 5;
+  EXPECT_NEAR(frames[0].x[2], 3 - 0.01 * 0.01 * 10 * n * (n + 1) / 2.0, 1e-12);
+  EXPECT_NEAR(frames[0].x[5], std::sin(0.5 * 2 * 0.01 * n), 1e-12);  // qz
+  EXPECT_NEAR(frames[0].x[6], std::cos(0.5 * 2 * 0.01 * n), 1e-12);  // qw
+  EXPECT_NEAR(frames[0].v[2], -0.01 * 10 * n, 1e-12);
+  EXPECT_NEAR(frames[0].v[5], 2.0, 1e-12);
+  std::string bad = scene;
+  bad.replace(bad.find("writeV=\"true\""), 13, "writeF=\"true\"");
+  write(dir / "bad.scn", bad);
+  const std::string message = test_support::errorOf([&] {
+    auto b = buildScene(io::readScene(dir / "bad.scn"));
+    Simulation sim(*b);
+  });
+  EXPECT_NE(message.find("writeF"), std::string::npos) << message;
+}
+
 // WriteState writes SOFA's dump format (forces too): read back by the suite's own reader, gzip-compressed, at
 // the first time and every period after, with the falling ball where symplectic Euler puts it
 // (z = 3 - h^2 g N (N + 1) / 2, v = -h g N).
