@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -13,6 +14,7 @@ namespace viscera {
 
 class BlockSparseMatrix;
 class MechanicalObject;
+class Node;
 class State;
 
 using TetList = Eigen::Matrix<int, 4, Eigen::Dynamic>;  // 4 x #tets
@@ -64,6 +66,30 @@ class ForceField {
   // True for a field that reads a mapped state's positions but acts on the mapping's input (a
   // collision surface on a mapped state): allowed beside a mapped state.
   virtual bool actsThroughMapping() const { return false; }
+};
+
+// A force field between two MechanicalObjects (SOFA's interaction force fields: springs whose
+// object1 and object2 are set). The EulerImplicitSolver that integrates its ends couples them in
+// its one system; an end that no solver integrates holds still (an anchor). Side 0 is object1,
+// side 1 object2; where a side is held still, its dx and df are null.
+class InteractionForceField {
+ public:
+  using Sides = std::array<const Eigen::Matrix3Xd*, 2>;
+  using SideForces = std::array<Eigen::Matrix3Xd*, 2>;
+  virtual ~InteractionForceField() = default;
+  virtual MechanicalObject& object(int side) const = 0;
+  // The node of the solver that integrates its ends (null: neither moves).
+  virtual const Node* solverNode() const = 0;
+  // f[k] += the forces on side k at positions x and velocities v; linearises there (kept in s).
+  virtual void addForce(State& s, const Sides& x, const Sides& v, const SideForces& f) const = 0;
+  // df[k] += factor K dx, at the last linearisation.
+  virtual void addDForce(const State& s, const Sides& dx, const SideForces& df, double factor) const = 0;
+  // The stiffness blocks at the last linearisation: visit(side i, node i, side j, node j, K_ij),
+  // df_i = K_ij dx_j, once per block (blocks of one pair of nodes may come several times: add them).
+  virtual void forEachStiffnessBlock(const State& s,
+                                     const std::function<void(int, int, int, int, const Eigen::Matrix3d&)>& visit) const = 0;
+  // The blocks forEachStiffnessBlock visits, as (side i, node i, side j, node j).
+  virtual void stiffnessPattern(std::vector<std::array<int, 4>>& blocks) const = 0;
 };
 
 // Mass; also applies gravity. `nodeMass` is the lumped mass (each row of M summed), which is all

@@ -15,6 +15,7 @@
 #include "core/Scene.h"
 #include "core/Text.h"
 #include "engine/mechanics/MechanicalObject.h"
+#include "engine/rigid/RigidDynamics.h"
 #include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 
@@ -27,16 +28,63 @@ struct Spring {
   double ks = 0, kd = 0, rest = 0;
 };
 
+// One spring's force on its end a (end b takes the opposite) and J = df_a/dx_b; a spring shorter
+// than 1e-9 pushes nothing (SOFA skips it) and has J = 0.
+Eigen::Vector3d springForce(const Spring& s, const Eigen::Vector3d& xa, const Eigen::Vector3d& xb, const Eigen::Vector3d& va,
+                            const Eigen::Vector3d& vb, Eigen::Matrix3d& J) {
+  Eigen::Vector3d u = xb - xa;
+  const double d = u.norm();
+  if (!(d > 1e-9)) {
+    J.setZero();
+    return Eigen::Vector3d::Zero();
+  }
+  u /= d;
+  const double intensity = s.ks * (d - s.rest) + s.kd * u.dot(vb - va);
+  const double t = intensity / d;
+  J = (s.ks - t) * u * u.transpose() + t * Eigen::Matrix3d::Identity();
+  return intensity * u;
+}
+
+// The springs of SOFA's SpringForceField from its attributes: `spring` ("i j ks kd L" each), or
+// indices1/indices2 with lengths and one stiffness and damping. `node(attr, side, i)` checks and
+// converts an index of end `side`.
+template <class NodeOf>
+std::vector<Spring> listedSprings(Component& c, const NodeOf& node) {
+  std::vector<Spring> out;
+  const Attributes& attrs = c.attrs();
+  if (attrs.isSet("spring")) {
+    const auto& v = attrs.reals("spring");
+    for (size_t k = 0; k + 5 <= v.size(); k += 5) {
+      if (v[k + 2] < 0 || v[k + 3] < 0 || v[k + 4] < 0)
+        throw c.error("spring", "spring " + std::to_string(k / 5) + " has a negative stiffness, damping or length");
+      out.push_back({node("spring", 0, v[k]), node("spring", 1, v[k + 1]), v[k + 2], v[k + 3], v[k + 4]});
+    }
+    return out;
+  }
+  const auto a = c.linkedInts("indices1"), b = c.linkedInts("indices2");
+  auto lengths = attrs.reals("lengths");
+  if (a.size() != b.size()) throw c.error("indices2", "has " + std::to_string(b.size()) + " nodes, indices1 " + std::to_string(a.size()));
+  if (lengths.size() == 1) lengths.assign(a.size(), lengths[0]);
+  if (!lengths.empty() && lengths.size() != a.size())
+    throw c.error("lengths", "needs one length, or one per spring (" + std::to_string(a.size()) + ")");
+  for (size_t k = 0; k < a.size(); ++k)
+    out.push_back({node("indices1", 0, a[k]), node("indices2", 1, b[k]), attrs.real("stiffness"), attrs.real("damping"),
+                   lengths.empty() ? 0.0 : lengths[k]});
+  return out;
+}
+
+// df_a/dx_b of each spring at the last force evaluation.
+struct SpringsLive : ComponentStateOf<SpringsLive> {
+  std::vector<Eigen::Matrix3d> J;
+  void save(StateWriter& out) const override { out.put(J); }
+  void load(StateReader& in) override { in.getSameSize(J, "springs"); }
+};
+
 class MeshSpringForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
   MechanicalObject& mstate() const override { return *state_; }
-  // df_a/dx_b of each spring at the last addForce.
-  struct Live : ComponentStateOf<Live> {
-    std::vector<Eigen::Matrix3d> J;
-    void save(StateWriter& out) const override { out.put(J); }
-    void load(StateReader& in) override { in.getSameSize(J, "springs"); }
-  };
+  using Live = SpringsLive;
   std::unique_ptr<ComponentState> initialState() const override {
     auto l = std::make_unique<Live>();
     l->J.assign(springs_.size(), Eigen::Matrix3d::Zero());
@@ -44,7 +92,15 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
   }
   void init() override {
     state_ = &contextState(*this);
-    if (typeName() == "SpringForceField") return listedSprings();
+    if (typeName() == "SpringForceField") {
+      const int n = state_->size();
+      springs_ = listedSprings(*this, [&](const char* attr, int, double i) {
+        if (!(i >= 0 && i < n && i == std::floor(i)))
+          throw error(attr, "node " + formatNumber(i) + " is not a node of '" + state_->name() + "' (" + std::to_string(n) + " nodes)");
+        return static_cast<int>(i);
+      });
+      return;
+    }
     const Eigen::Matrix3Xd& X = state_->x0;
     // The element kinds in SOFA's order: a pair keeps the stiffness of the first kind that lists it.
     auto value = [&](const char* kind, const char* fallback) {
@@ -142,18 +198,9 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
     std::vector<Eigen::Matrix3d>& J = stateIn<Live>(st).J;
     for (size_t i = 0; i < springs_.size(); ++i) {
       const Spring& s = springs_[i];
-      Eigen::Vector3d u = x.col(s.b) - x.col(s.a);
-      const double d = u.norm();
-      if (!(d > 1e-9)) {  // SOFA skips springs this short
-        J[i].setZero();
-        continue;
-      }
-      u /= d;
-      const double intensity = s.ks * (d - s.rest) + s.kd * u.dot(v.col(s.b) - v.col(s.a));
-      f.col(s.a) += intensity * u;
-      f.col(s.b) -= intensity * u;
-      const double t = intensity / d;
-      J[i] = (s.ks - t) * u * u.transpose() + t * Eigen::Matrix3d::Identity();
+      const Eigen::Vector3d fa = springForce(s, x.col(s.a), x.col(s.b), v.col(s.a), v.col(s.b), J[i]);
+      f.col(s.a) += fa;
+      f.col(s.b) -= fa;
     }
   }
   void addDForce(const State& st, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override {
@@ -185,40 +232,102 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
   }
 
  private:
-  // SOFA's SpringForceField: `spring` lists "i j ks kd L" per spring; or indices1, indices2 and
-  // lengths, with one stiffness and damping for all. Both ends are nodes of this MechanicalObject.
-  void listedSprings() {
-    for (const char* end : {"object1", "object2"})
-      if (Component* c = linkedComponent(end); c && c != state_)
-        throw error(end, "links to '" + c->name() + "'; springs between two MechanicalObjects are not handled (both "
-                         "ends must be nodes of '" + state_->name() + "')");
-    const int n = state_->size();
-    auto node = [&](const char* attr, double i) {
-      if (!(i >= 0 && i < n && i == std::floor(i)))
-        throw error(attr, "node " + formatNumber(i) + " is not a node of '" + state_->name() + "' (" + std::to_string(n) + " nodes)");
-      return static_cast<int>(i);
-    };
-    if (attrs_.isSet("spring")) {
-      const auto& v = attrs_.reals("spring");
-      for (size_t k = 0; k + 5 <= v.size(); k += 5) {
-        if (v[k + 2] < 0 || v[k + 3] < 0 || v[k + 4] < 0)
-          throw error("spring", "spring " + std::to_string(k / 5) + " has a negative stiffness, damping or length");
-        springs_.push_back({node("spring", v[k]), node("spring", v[k + 1]), v[k + 2], v[k + 3], v[k + 4]});
+  MechanicalObject* state_ = nullptr;
+  std::vector<Spring> springs_;
+};
+
+// SOFA's SpringForceField between two MechanicalObjects (object1, object2; a missing one is the
+// node's): spring ends a on object1, b on object2. The EulerImplicitSolver integrating both
+// couples them (InteractionForceField); an end that nothing integrates holds still.
+class InteractionSprings : public Component, public InteractionForceField, public Stateful {
+ public:
+  using Component::Component;
+  std::unique_ptr<ComponentState> initialState() const override {
+    auto l = std::make_unique<SpringsLive>();
+    l->J.assign(springs_.size(), Eigen::Matrix3d::Zero());
+    return l;
+  }
+  void init() override {
+    for (int k = 0; k < 2; ++k) {
+      const char* attr = k ? "object2" : "object1";
+      if (attrs_.isSet(attr)) {
+        obj_[k] = dynamic_cast<MechanicalObject*>(linkedComponent(attr));
+        if (!obj_[k]) throw error(attr, "does not link to a MechanicalObject");
+        scene().initComponent(*obj_[k]);
+      } else {
+        obj_[k] = &contextState(*this);
       }
+      if (obj_[k]->mappedBy())
+        throw error(attr, "'" + obj_[k]->name() + "' is moved by a mapping; springs on a mapped object are not handled (link "
+                          "the object the mapping follows)");
+    }
+    springs_ = listedSprings(*this, [&](const char* attr, int side, double i) {
+      const int n = obj_[side]->size();
+      if (!(i >= 0 && i < n && i == std::floor(i)))
+        throw error(attr, "node " + formatNumber(i) + " is not a node of '" + obj_[side]->name() + "' (object" +
+                              std::to_string(side + 1) + ", " + std::to_string(n) + " nodes)");
+      return static_cast<int>(i);
+    });
+    const Node* n1 = integratingNode(*obj_[0]);
+    const Node* n2 = integratingNode(*obj_[1]);
+    if (n1 && n2 && n1 != n2)
+      throw error("its ends are integrated by two solvers (in " + n1->path() + " and " + n2->path() +
+                  "); put both objects under one EulerImplicitSolver (in a node above both, without a MechanicalObject)");
+    solver_ = n1 ? n1 : n2;
+    if (!solver_) {
+      scene().addNote(loc().str() + ": note: SpringForceField '" + name() + "': no solver integrates either end; the springs move nothing");
       return;
     }
-    const auto a = linkedInts("indices1"), b = linkedInts("indices2");
-    auto lengths = attrs_.reals("lengths");
-    if (a.size() != b.size()) throw error("indices2", "has " + std::to_string(b.size()) + " nodes, indices1 " + std::to_string(a.size()));
-    if (lengths.size() == 1) lengths.assign(a.size(), lengths[0]);
-    if (!lengths.empty() && lengths.size() != a.size())
-      throw error("lengths", "needs one length, or one per spring (" + std::to_string(a.size()) + ")");
-    for (size_t k = 0; k < a.size(); ++k)
-      springs_.push_back({node("indices1", a[k]), node("indices2", b[k]), attrs_.real("stiffness"), attrs_.real("damping"),
-                          lengths.empty() ? 0.0 : lengths[k]});
+    auto& ode = dynamic_cast<Component&>(*solver_->find<OdeSolver>());
+    if (ode.typeName() != "EulerImplicitSolver")
+      throw error("its ends are integrated by " + ode.typeName() + " '" + ode.name() + "'; springs between two objects are "
+                  "solved by EulerImplicitSolver");
+  }
+  MechanicalObject& object(int side) const override { return *obj_[side]; }
+  const Node* solverNode() const override { return solver_; }
+  void addForce(State& st, const Sides& x, const Sides& v, const SideForces& f) const override {
+    std::vector<Eigen::Matrix3d>& J = stateIn<SpringsLive>(st).J;
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = springs_[i];
+      const Eigen::Vector3d fa = springForce(s, x[0]->col(s.a), x[1]->col(s.b), v[0]->col(s.a), v[1]->col(s.b), J[i]);
+      if (f[0]) f[0]->col(s.a) += fa;
+      if (f[1]) f[1]->col(s.b) -= fa;
+    }
+  }
+  void addDForce(const State& st, const Sides& dx, const SideForces& df, double factor) const override {
+    const std::vector<Eigen::Matrix3d>& J = stateIn<SpringsLive>(st).J;
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = springs_[i];
+      Eigen::Vector3d d = Eigen::Vector3d::Zero();
+      if (dx[1]) d += dx[1]->col(s.b);
+      if (dx[0]) d -= dx[0]->col(s.a);
+      d = factor * (J[i] * d);
+      if (df[0]) df[0]->col(s.a) += d;
+      if (df[1]) df[1]->col(s.b) -= d;
+    }
+  }
+  void forEachStiffnessBlock(const State& st, const std::function<void(int, int, int, int, const Eigen::Matrix3d&)>& visit) const override {
+    const std::vector<Eigen::Matrix3d>& J = stateIn<SpringsLive>(st).J;
+    for (size_t i = 0; i < springs_.size(); ++i) {
+      const Spring& s = springs_[i];
+      visit(0, s.a, 0, s.a, -J[i]);
+      visit(0, s.a, 1, s.b, J[i]);
+      visit(1, s.b, 0, s.a, J[i]);
+      visit(1, s.b, 1, s.b, -J[i]);
+    }
+  }
+  void stiffnessPattern(std::vector<std::array<int, 4>>& blocks) const override {
+    for (const Spring& s : springs_) {
+      blocks.push_back({0, s.a, 0, s.a});
+      blocks.push_back({0, s.a, 1, s.b});
+      blocks.push_back({1, s.b, 0, s.a});
+      blocks.push_back({1, s.b, 1, s.b});
+    }
   }
 
-  MechanicalObject* state_ = nullptr;
+ private:
+  std::array<MechanicalObject*, 2> obj_{};
+  const Node* solver_ = nullptr;
   std::vector<Spring> springs_;
 };
 
@@ -261,20 +370,27 @@ void registerSprings(Registry& r) {
   ComponentSpec s;
   s.name = "SpringForceField";
   s.category = "forcefield";
-  s.doc = "Springs between listed node pairs of one MechanicalObject (SOFA's SpringForceField): `spring` gives \"i j "
+  s.doc = "Springs between listed node pairs (SOFA's SpringForceField), of one MechanicalObject or, with object1 and "
+          "object2, between two: `spring` gives \"i j "
           "ks kd L\" for each, or indices1/indices2 with lengths and one stiffness and damping. Per spring f = ks (d - L) "
           "+ kd u.(v_j - v_i) along u, the unit vector from i to j; damping stays out of the implicit matrix, as in SOFA. "
-          "A spring shorter than 1e-9 of the scene's length pushes nothing.";
+          "A spring shorter than 1e-9 of the scene's length pushes nothing. Between two objects, the EulerImplicitSolver "
+          "integrating both couples them in its one system (CG, MINRES or a direct solver over all their nodes); an end on "
+          "an object that no solver integrates (no mass) holds still, as an anchor.";
   s.add(AttrSpec::reals("spring").multipleOf(5).help("i j ks kd L per spring (stiffness in force per length, damping in force per speed)"));
   s.add(AttrSpec::ints("indices1").alias("springsIndices1").atLeast(0).linked().help("first nodes (without `spring`)"));
   s.add(AttrSpec::ints("indices2").alias("springsIndices2").atLeast(0).linked().help("second nodes"));
   s.add(AttrSpec::reals("lengths").alias("length").atLeast(0).unit(Dimension::length()).help("rest lengths: one for all or one per spring (default 0)"));
   s.add(AttrSpec::real("stiffness").def("100").atLeast(0).unit(Dimension::stiffness()).help("stiffness of the indexed springs"));
   s.add(AttrSpec::real("damping").def("5").atLeast(0).unit({0, 1, -1}).help("damping of the indexed springs"));
-  s.add(AttrSpec::link("object1").help("the MechanicalObject of the first nodes (default and only choice: this node's)"));
-  s.add(AttrSpec::link("object2").help("the MechanicalObject of the second nodes (default and only choice: this node's)"));
-  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node)"));
-  s.factory = [](BuildContext& c) { return std::make_unique<MeshSpringForceField>(c); };
+  s.add(AttrSpec::link("object1").help("the MechanicalObject of the first nodes (default: the node's); with object1 or "
+                                       "object2 set, springs between two objects"));
+  s.add(AttrSpec::link("object2").help("the MechanicalObject of the second nodes (default: the node's)"));
+  s.add(AttrSpec::link("mstate").help("the MechanicalObject (default: the one in the node); without object1 and object2"));
+  s.factory = [](BuildContext& c) -> std::unique_ptr<Component> {
+    if (c.attrs().isSet("object1") || c.attrs().isSet("object2")) return std::make_unique<InteractionSprings>(c);
+    return std::make_unique<MeshSpringForceField>(c);
+  };
   r.add(std::move(s));
 }
 

@@ -7,7 +7,10 @@
 //   (M - a K) v_new = f(x, v),  x <- x + h v_new.
 // In the node of a rigid body it integrates the body (RigidDynamics.h). In a node with no body
 // (SOFA's solver over several bodies) it integrates the rigid bodies below it and the deformable
-// ones (collectBodies), the latter as one linear system over all their unknowns.
+// ones (collectBodies), the latter as one linear system over all their unknowns, which the
+// interaction force fields between them (springs between two objects) couple.
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -35,6 +38,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     Eigen::VectorXd dv;
     int lastIterations = 0;
     std::vector<BlockSparseMatrix> A;  // one per body
+    BlockSparseMatrix joint;           // all bodies and their couplings, when a matrix is needed
     Eigen::Matrix3Xd start;  // positions at the start of the last step (one body: its linearisation)
     void save(StateWriter& out) const override {
       out.put(dv);
@@ -73,17 +77,24 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     }
     if (systems_.empty()) return;
     linear_ = findLinearSolver(*this);
-    if (systems_.size() > 1) {
+    collectCouplings();
+    joint_ = systems_.size() > 1 || !couplings_.empty();
+    if (joint_) {
       const std::string& l = dynamic_cast<Component&>(*linear_).typeName();
-      if (l != "CGLinearSolver" && l != "MinResLinearSolver")
-        throw error("integrates " + std::to_string(systems_.size()) + " deformable bodies below its node, which it solves "
-                    "as one system with an iterative solver (CGLinearSolver or MinResLinearSolver); its " + l +
-                    " factorises one body's matrix: give each body its own solver");
-      scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "' integrates " +
-                      std::to_string(systems_.size()) + " deformable bodies below its node as one system");
+      static const char* general[] = {"CGLinearSolver", "MinResLinearSolver", "SparseLDLSolver", "SparseCholeskySolver", "SVDLinearSolver"};
+      if (std::find(std::begin(general), std::end(general), l) == std::end(general))
+        throw error("integrates " + std::to_string(systems_.size()) + " deformable bodies below its node" +
+                    (couplings_.empty() ? "" : ", coupled by " + std::to_string(couplings_.size()) + " interaction force field(s),") +
+                    " as one system; its " + l + " works on one body's matrix: use CGLinearSolver, MinResLinearSolver, "
+                    "SparseLDLSolver, SparseCholeskySolver or SVDLinearSolver, or give each body its own solver");
+      if (systems_.size() > 1)
+        scene().addNote(loc().str() + ": note: " + typeName() + " '" + name() + "' integrates " +
+                        std::to_string(systems_.size()) + " deformable bodies below its node as one system");
     }
-    if (linear_->needsMatrix())
+    if (linear_->needsMatrix()) {
       for (auto& sys : systems_) sys->prepareAssembly();
+      if (joint_) prepareJoint();
+    }
   }
 
   std::optional<Diverged> step(State& st, double t, double h, int stepIndex) const override {
@@ -98,69 +109,92 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     // -a (a + rK) K, hence the scale a / (a + rK) on the undamped fields.
     const double uScale = a / (a + rK_);
     const int bodies = static_cast<int>(systems_.size());
-    l.A.resize(static_cast<size_t>(bodies));
+    const auto K = [](int k) { return static_cast<size_t>(k); };
+    l.A.resize(K(bodies));
     // Each body's part of the one system: its right-hand side, its operator (A_k, or matrix-free).
-    std::vector<Eigen::Index> offset(static_cast<size_t>(bodies) + 1, 0);
-    std::vector<Eigen::Matrix3Xd> x0(static_cast<size_t>(bodies)), v0(static_cast<size_t>(bodies)), rhs(static_cast<size_t>(bodies));
+    std::vector<Eigen::Index> offset(K(bodies) + 1, 0);
+    std::vector<Eigen::Matrix3Xd> x0(K(bodies)), v0(K(bodies)), rhs(K(bodies)), Kv(K(bodies));
+    // Forces: each body's own, then the couplings' on their ends.
     for (int k = 0; k < bodies; ++k) {
-      const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
+      const MechanicalSystem& sys = *systems_[K(k)];
+      MechanicalObject::Live& s = sys.state().live(st);
+      offset[K(k) + 1] = offset[K(k)] + 3 * sys.nodes();
+      x0[K(k)] = s.x;
+      v0[K(k)] = s.v;
+      sys.computeForce(st, s.x, s.v, s.f);
+    }
+    for (const Coupling& c : couplings_)
+      c.ff->addForce(st, sides(st, c, &MechanicalObject::Live::x), sides(st, c, &MechanicalObject::Live::v), bodyVectors(st, c));
+    for (int k = 0; k < bodies; ++k) {
+      const MechanicalSystem& sys = *systems_[K(k)];
       MechanicalObject::Live& s = sys.state().live(st);
       const int n = sys.nodes();
-      offset[static_cast<size_t>(k) + 1] = offset[static_cast<size_t>(k)] + 3 * n;
-      x0[static_cast<size_t>(k)] = s.x;
-      v0[static_cast<size_t>(k)] = s.v;
-      Eigen::Matrix3Xd& f = s.f;
-      sys.computeForce(st, s.x, s.v, f);
-      Eigen::Matrix3Xd Kv = Eigen::Matrix3Xd::Zero(3, n);
+      Kv[K(k)] = Eigen::Matrix3Xd::Zero(3, n);
       if (linear_->needsMatrix()) {
         // A = kFact K + mFact M, constrained; K v read from kFact K before the mass joins it.
-        BlockSparseMatrix& A = l.A[static_cast<size_t>(k)];
+        BlockSparseMatrix& A = l.A[K(k)];
         sys.assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
-        A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv.data(), 3 * n));
-        if (kFact != 0) Kv *= 1.0 / kFact;
+        A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv[K(k)].data(), 3 * n));
+        if (kFact != 0) Kv[K(k)] *= 1.0 / kFact;
         else A.setZero();
         sys.addMass(A, mFact);
         sys.constrain(A);
       } else {
-        sys.addKdx(st, s.v, Kv, 1.0, uScale);
+        sys.addKdx(st, s.v, Kv[K(k)], 1.0, uScale);
       }
-      Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, n);
+    }
+    // The couplings' K v (Rayleigh damped, as the bodies' own fields).
+    for (const Coupling& c : couplings_) {
+      InteractionForceField::SideForces out{};
+      for (int side = 0; side < 2; ++side)
+        if (c.body[side] >= 0) out[side] = &Kv[K(c.body[side])];
+      c.ff->addDForce(st, bodySides(st, c, &MechanicalObject::Live::v), out, 1.0);
+    }
+    for (int k = 0; k < bodies; ++k) {
+      const MechanicalSystem& sys = *systems_[K(k)];
+      const MechanicalObject::Live& s = sys.state().live(st);
+      Eigen::Matrix3Xd Mv = Eigen::Matrix3Xd::Zero(3, sys.nodes());
       if (rM_ != 0) sys.addMdx(s.v, Mv, 1.0);
       // First order: the unknown is the new velocity itself.
-      rhs[static_cast<size_t>(k)] = firstOrder_ ? Eigen::Matrix3Xd(f) : Eigen::Matrix3Xd(h * (f + (a + rK_) * Kv - rM_ * Mv));
-      sys.project(rhs[static_cast<size_t>(k)]);
+      rhs[K(k)] = firstOrder_ ? Eigen::Matrix3Xd(s.f) : Eigen::Matrix3Xd(h * (s.f + (a + rK_) * Kv[K(k)] - rM_ * Mv));
+      sys.project(rhs[K(k)]);
     }
     if (bodies == 1) l.start = x0.front();
     LinearProblem problem;
-    if (bodies == 1 && linear_->needsMatrix()) {
+    if (!joint_ && linear_->needsMatrix()) {
       useAssembled(problem, l.A.front());
+    } else if (linear_->needsMatrix()) {
+      assembleJoint(st, l, kFact);
+      useAssembled(problem, l.joint);
     } else {
-      problem.apply = [this, &st, &l, &offset, bodies, mFact, kFact, uScale](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+      problem.apply = [this, &st, &offset, bodies, mFact, kFact, uScale, K](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
         q.resize(p.size());
+        std::vector<Eigen::Map<const Eigen::Matrix3Xd>> P;
+        std::vector<Eigen::Matrix3Xd> Q(K(bodies));
         for (int k = 0; k < bodies; ++k) {
-          const MechanicalSystem& sys = *systems_[static_cast<size_t>(k)];
-          const Eigen::Index o = offset[static_cast<size_t>(k)], len = offset[static_cast<size_t>(k) + 1] - o;
-          if (linear_->needsMatrix()) {
-            l.A[static_cast<size_t>(k)].multiply(p.segment(o, len), q.segment(o, len));
-            continue;
-          }
-          const int n = sys.nodes();
-          const Eigen::Map<const Eigen::Matrix3Xd> P(p.data() + o, 3, n);
-          Eigen::Matrix3Xd Q = Eigen::Matrix3Xd::Zero(3, n);
-          sys.addMdx(P, Q, mFact);
-          sys.addKdx(st, P, Q, kFact, uScale);
-          sys.project(Q);
-          q.segment(o, len) = Eigen::Map<const Eigen::VectorXd>(Q.data(), len);
+          const MechanicalSystem& sys = *systems_[K(k)];
+          P.emplace_back(p.data() + offset[K(k)], 3, sys.nodes());
+          Q[K(k)] = Eigen::Matrix3Xd::Zero(3, sys.nodes());
+          sys.addMdx(P.back(), Q[K(k)], mFact);
+          sys.addKdx(st, P.back(), Q[K(k)], kFact, uScale);
+        }
+        for (const Coupling& c : couplings_) {
+          InteractionForceField::Sides in{};
+          InteractionForceField::SideForces out{};
+          Eigen::Matrix3Xd pk[2];
+          for (int side = 0; side < 2; ++side)
+            if (c.body[side] >= 0) {
+              pk[side] = P[K(c.body[side])];
+              in[side] = &pk[side];
+              out[side] = &Q[K(c.body[side])];
+            }
+          c.ff->addDForce(st, in, out, kFact);
+        }
+        for (int k = 0; k < bodies; ++k) {
+          systems_[K(k)]->project(Q[K(k)]);
+          q.segment(offset[K(k)], offset[K(k) + 1] - offset[K(k)]) = Eigen::Map<const Eigen::VectorXd>(Q[K(k)].data(), Q[K(k)].size());
         }
       };
-      if (linear_->needsMatrix()) {
-        problem.diagonal.resize(offset.back());
-        for (int k = 0; k < bodies; ++k) {
-          const BlockSparseMatrix& A = l.A[static_cast<size_t>(k)];
-          for (int i = 0; i < A.blockRows(); ++i)
-            problem.diagonal.segment<3>(offset[static_cast<size_t>(k)] + 3 * i) = A.block(A.diagonalSlot(i)).diagonal();
-        }
-      }
     }
     Eigen::VectorXd bv(offset.back());
     for (int k = 0; k < bodies; ++k)
@@ -226,6 +260,94 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   std::unique_ptr<RigidBodyIntegrator> rigid_;  // the rigid bodies it moves, if any
   std::vector<std::unique_ptr<MechanicalSystem>> systems_;  // the deformable bodies it moves
   LinearSolver* linear_ = nullptr;
+  // Interaction force fields between its bodies (or a body and an object held still): each
+  // side's index in systems_, or -1 for a side held still.
+  struct Coupling {
+    const InteractionForceField* ff = nullptr;
+    std::array<int, 2> body{-1, -1};
+  };
+  std::vector<Coupling> couplings_;
+  // One system over several bodies or with couplings; with an assembled linear solver, its matrix
+  // is the bodies' matrices side by side and the couplings' blocks (jointPattern_, bodySlots_).
+  bool joint_ = false;
+  BlockSparseMatrix jointPattern_;
+  std::vector<int> firstNode_;               // each body's first node in the joint matrix
+  std::vector<std::vector<int>> bodySlots_;  // body k's block slot -> joint slot
+
+  void collectCouplings() {
+    for (InteractionForceField* ff : scene().all<InteractionForceField>()) {
+      scene().initComponent(dynamic_cast<Component&>(*ff));
+      if (ff->solverNode() != &node()) continue;
+      Coupling c{ff, {-1, -1}};
+      for (int side = 0; side < 2; ++side)
+        for (size_t k = 0; k < systems_.size(); ++k)
+          if (&systems_[k]->state() == &ff->object(side)) c.body[side] = static_cast<int>(k);
+      if (c.body[0] < 0 && c.body[1] < 0) continue;
+      couplings_.push_back(c);
+    }
+  }
+  // A coupling's sides: the bodies' vectors (positions or velocities), an object held still's own.
+  InteractionForceField::Sides sides(const State& st, const Coupling& c, Eigen::Matrix3Xd MechanicalObject::Live::*v) const {
+    InteractionForceField::Sides out{};
+    for (int side = 0; side < 2; ++side) out[side] = &(c.ff->object(side).live(st).*v);
+    return out;
+  }
+  // The same for the integrated sides only (null for a side held still).
+  InteractionForceField::Sides bodySides(const State& st, const Coupling& c, Eigen::Matrix3Xd MechanicalObject::Live::*v) const {
+    InteractionForceField::Sides out{};
+    for (int side = 0; side < 2; ++side)
+      if (c.body[side] >= 0) out[side] = &(c.ff->object(side).live(st).*v);
+    return out;
+  }
+  InteractionForceField::SideForces bodyVectors(State& st, const Coupling& c) const {
+    InteractionForceField::SideForces out{};
+    for (int side = 0; side < 2; ++side)
+      if (c.body[side] >= 0) out[side] = &c.ff->object(side).live(st).f;
+    return out;
+  }
+  // The joint matrix's pattern: each body's pattern at its first node, and the couplings' blocks.
+  void prepareJoint() {
+    firstNode_.assign(systems_.size() + 1, 0);
+    for (size_t k = 0; k < systems_.size(); ++k) firstNode_[k + 1] = firstNode_[k] + systems_[k]->nodes();
+    std::vector<std::pair<int, int>> pairs;
+    for (size_t k = 0; k < systems_.size(); ++k) {
+      const BlockSparseMatrix& P = systems_[k]->pattern();
+      for (int i = 0; i < P.blockRows(); ++i)
+        for (int s = P.rowStart()[i]; s < P.rowStart()[i + 1]; ++s) pairs.push_back({firstNode_[k] + i, firstNode_[k] + P.cols()[s]});
+    }
+    for (const Coupling& c : couplings_) {
+      std::vector<std::array<int, 4>> blocks;
+      c.ff->stiffnessPattern(blocks);
+      for (const auto& b : blocks)
+        if (c.body[b[0]] >= 0 && c.body[b[2]] >= 0)
+          pairs.push_back({firstNode_[c.body[b[0]]] + b[1], firstNode_[c.body[b[2]]] + b[3]});
+    }
+    jointPattern_.setPattern(firstNode_.back(), pairs);
+    bodySlots_.assign(systems_.size(), {});
+    for (size_t k = 0; k < systems_.size(); ++k) {
+      const BlockSparseMatrix& P = systems_[k]->pattern();
+      for (int i = 0; i < P.blockRows(); ++i)
+        for (int s = P.rowStart()[i]; s < P.rowStart()[i + 1]; ++s)
+          bodySlots_[k].push_back(jointPattern_.slot(firstNode_[k] + i, firstNode_[k] + P.cols()[s]));
+    }
+  }
+  // The joint matrix: the bodies' A_k (constrained already) and the couplings' kFact P_i K_ij P_j.
+  void assembleJoint(const State& st, Live& l, double kFact) const {
+    if (l.joint.blockRows() != jointPattern_.blockRows()) l.joint = jointPattern_;
+    l.joint.setZero();
+    for (size_t k = 0; k < systems_.size(); ++k) {
+      const BlockSparseMatrix& A = l.A[k];
+      for (size_t s = 0; s < bodySlots_[k].size(); ++s) l.joint.block(bodySlots_[k][s]) = A.block(static_cast<int>(s));
+    }
+    if (kFact == 0) return;
+    for (const Coupling& c : couplings_)
+      c.ff->forEachStiffnessBlock(st, [&](int si, int i, int sj, int j, const Eigen::Matrix3d& Kij) {
+        const int bi = c.body[si], bj = c.body[sj];
+        if (bi < 0 || bj < 0) return;
+        const Eigen::Matrix3d Pi = systems_[static_cast<size_t>(bi)]->projector(i), Pj = systems_[static_cast<size_t>(bj)]->projector(j);
+        l.joint.block(l.joint.slot(firstNode_[bi] + i, firstNode_[bj] + j)) += kFact * (Pi * Kij * Pj);
+      });
+  }
 };
 
 }  // namespace
@@ -279,7 +401,8 @@ void registerEulerImplicit(Registry& r) {
   s.doc = "Implicit (backward) Euler with Rayleigh damping, linearised: one linear solve per step (SOFA's "
           "formulation). The linear solver is the one in the same node. In a node without a MechanicalObject it "
           "integrates the bodies below it that no other solver moves: rigid bodies, and deformable ones (a mass in "
-          "their node) as one system solved by an iterative linear solver.";
+          "their node) as one system (an iterative solver, or a direct one on the joint matrix). Springs between two "
+          "objects it integrates (SpringForceField with object1 and object2) couple them in that system.";
   s.add(AttrSpec::real("rayleighStiffness").def("0").atLeast(0).help("Rayleigh damping proportional to stiffness"));
   s.add(AttrSpec::real("rayleighMass").def("0").atLeast(0).help("Rayleigh damping proportional to mass"));
   s.add(AttrSpec::boolean("firstOrder").def("false").help(
