@@ -10,7 +10,7 @@ namespace viscera {
 
 namespace {
 constexpr char kMagic[8] = {'V', 'S', 'C', 'S', 'T', 'A', 'T', 'E'};
-constexpr std::uint32_t kVersion = 2;  // 2: every stateful component has a block (springs, solvers, mappings)
+constexpr std::uint32_t kVersion = 3;  // 2: every stateful component has a block (springs, solvers, mappings); 3: plastic strains
 }  // namespace
 
 void StateReader::finish() const {

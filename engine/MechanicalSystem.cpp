@@ -81,6 +81,10 @@ MechanicalSystem::MechanicalSystem(Component& owner, MechanicalObject& body) {
       }
     }
   }
+  for (InteractionForceField* ff : owner.scene().all<InteractionForceField>()) {
+    owner.scene().initComponent(dynamic_cast<Component&>(*ff));
+    if (&ff->object(0) == state_ && &ff->object(1) == state_) internal_.push_back(ff);
+  }
   // Partly held nodes: the span of their held directions is removed from their motion; three
   // independent directions fix the node.
   for (const auto& [node, dirs] : held) {
@@ -98,7 +102,7 @@ MechanicalSystem::MechanicalSystem(Component& owner, MechanicalObject& body) {
     else partial_.push_back({node, P});
   }
   if (!hasMass) {
-    if (!forces_.empty())
+    if (!forces_.empty() || !internal_.empty())
       throw owner.error("no mass acts on MechanicalObject '" + state_->name() + "' (add UniformMass, DiagonalMass or MeshMatrixMass)");
     // Neither mass nor force: SOFA's solve leaves such a state where it is. Its nodes are held
     // (a unit mass keeps the system regular; gravity on it is held too).
@@ -123,17 +127,24 @@ void MechanicalSystem::computeForce(State& s, const Eigen::Matrix3Xd& x, const E
                                     Eigen::Matrix3Xd& f) const {
   f.setZero(3, x.cols());
   for (ForceField* ff : forces_) ff->addForce(s, x, v, f);
+  for (const InteractionForceField* ff : internal_) ff->addForce(s, {&x, &x}, {&v, &v}, {&f, &f});
 }
 
 void MechanicalSystem::addKdx(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double factor,
                               double undampedScale) const {
   for (ForceField* ff : forces_) ff->addDForce(s, dx, df, ff->rayleighDamped() ? factor : factor * undampedScale);
+  for (const InteractionForceField* ff : internal_) ff->addDForce(s, {&dx, &dx}, {&df, &df}, factor);
 }
 
 void MechanicalSystem::prepareAssembly() {
   if (patternReady_) return;
   std::vector<std::pair<int, int>> pairs;
   for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
+  for (const InteractionForceField* ff : internal_) {
+    std::vector<std::array<int, 4>> blocks;
+    ff->stiffnessPattern(blocks);
+    for (const auto& b : blocks) pairs.push_back({b[1], b[3]});
+  }
   for (Mass* m : consistent_) m->massPattern(pairs);
   pattern_.setPattern(nodes(), pairs);
   for (ForceField* ff : forces_) ff->prepareAssembly(pattern_);
@@ -145,6 +156,8 @@ void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, d
   if (K.blockRows() != nodes()) K = pattern_;
   K.setZero();
   for (ForceField* ff : forces_) ff->addStiffness(s, K, factor * (ff->rayleighDamped() ? 1.0 : undampedScale));
+  for (const InteractionForceField* ff : internal_)
+    ff->forEachStiffnessBlock(s, [&](int, int i, int, int j, const Eigen::Matrix3d& Kij) { K.block(K.slot(i, j)) += factor * Kij; });
 }
 
 void MechanicalSystem::addMdx(const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& out, double factor) const {

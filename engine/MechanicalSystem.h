@@ -41,6 +41,8 @@ class MechanicalSystem {
   // nodes, P A P + (I - P) for partly held ones.
   void constrain(BlockSparseMatrix& A) const;
   const std::vector<ForceField*>& forceFields() const { return forces_; }
+  // Interaction force fields with both ends on this object (its own springs placed elsewhere).
+  const std::vector<const InteractionForceField*>& internalForces() const { return internal_; }
 
   // f = f(x, v) from every force field and mass (gravity); linearises the force fields at x (the
   // linearisation is kept in `s`).
@@ -67,6 +69,8 @@ class MechanicalSystem {
  private:
   MechanicalObject* state_ = nullptr;
   std::vector<ForceField*> forces_;
+  // Interaction force fields with both ends on this object, wherever they are placed.
+  std::vector<const InteractionForceField*> internal_;
   std::vector<int> fixed_;
   std::vector<std::pair<int, Eigen::Matrix3d>> partial_;
   Eigen::VectorXd mass_;

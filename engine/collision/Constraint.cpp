@@ -55,6 +55,16 @@ class ConstraintCorrection : public Component, public Stateful {
     if (!ode) throw error("needs the body's ODE solver (EulerImplicitSolver, symplectic EulerExplicitSolver or StaticSolver) in its node");
     scene().initComponent(dynamic_cast<Component&>(*ode));
     ode_ = ode;
+    // Springs to another object enter the body's step, not its compliance here: refuse rather
+    // than correct contacts with a softer body than the one that moved.
+    for (InteractionForceField* ff : scene().all<InteractionForceField>()) {
+      scene().initComponent(dynamic_cast<Component&>(*ff));
+      if (&ff->object(0) == &ff->object(1) || !ff->solverNode()) continue;
+      if (&ff->object(0) == &sys_->state() || &ff->object(1) == &sys_->state())
+        throw error("its body '" + sys_->state().name() + "' is tied to another object by " +
+                    dynamic_cast<Component&>(*ff).typeName() + " '" + dynamic_cast<Component&>(*ff).name() +
+                    "', which the contact compliance does not include");
+    }
     auto r = ode->stepResponse(scene().dt());
     if (!r)
       throw error("the ODE solver in its node gives no step response to correct (EulerImplicitSolver, symplectic "
@@ -110,7 +120,10 @@ class ConstraintCorrection : public Component, public Stateful {
       // the free motion's end), so that the correction completes that step's constrained solve.
       const Eigen::Matrix3Xd* at = ode_->linearisedAt(st);
       const Eigen::Matrix3Xd& x = sys_->state().x(st);
-      factorizeAt(st, at && at->cols() == x.cols() ? *at : x, l.resp, l.A, l.chol.get());
+      // In a copy of the force fields' blocks: the step's own are left as they are (a plastic
+      // strain must not creep a second time in the step).
+      State scratch = scratchState(&st);
+      factorizeAt(scratch, at && at->cols() == x.cols() ? *at : x, l.resp, l.A, l.chol.get());
       l.own = true;
       l.columns.clear();
     }
@@ -143,6 +156,29 @@ class ConstraintCorrection : public Component, public Stateful {
     return sys_->projector(u) * (l.resp.xFactor / (l.resp.mFactor * m));
   }
 
+  // Whether linearising the body reads this component's block: the body's force fields and the
+  // springs with both ends on it.
+  bool linearisedBy(const Stateful* c) const {
+    const auto& forces = sys_->forceFields();
+    if (auto* f = dynamic_cast<const ForceField*>(c); f && std::find(forces.begin(), forces.end(), f) != forces.end()) return true;
+    const auto& internal = sys_->internalForces();
+    auto* i = dynamic_cast<const InteractionForceField*>(c);
+    return i && std::find(internal.begin(), internal.end(), i) != internal.end();
+  }
+  // A scratch state for linearising the body: the blocks linearisedBy reads, copied from `from`
+  // or, with none, at their initial values; no other block is read.
+  State scratchState(const State* from) const {
+    State out;
+    std::vector<Stateful*> stateful = scene().all<Stateful>();
+    for (size_t i = 0; i < stateful.size(); ++i) {
+      if (stateful[i]->stateSlot() < 0) stateful[i]->setStateSlot(static_cast<int>(i));
+      std::unique_ptr<ComponentState> block;
+      if (linearisedBy(stateful[i]))
+        block = from ? from->of<ComponentState>(stateful[i]->stateSlot()).clone() : stateful[i]->initialState();
+      out.add("", std::move(block));
+    }
+    return out;
+  }
   // Factorises the step matrix A = mFactor M + kFactor K with the force fields linearised at x
   // (in state `st`, whose force-field blocks it overwrites).
   void factorizeAt(State& st, const Eigen::Matrix3Xd& x, const StepResponse& r, BlockSparseMatrix& A,
@@ -159,16 +195,7 @@ class ConstraintCorrection : public Component, public Stateful {
   }
   // The same at rest, in a scratch state of the model's initial values.
   void factorizeAt(const Eigen::Matrix3Xd& x, const StepResponse& r, CholmodSolver& chol) const {
-    // Only the body's force fields (initialised by now) get a block: the rest are not read.
-    State rest;
-    const auto& forces = sys_->forceFields();
-    std::vector<Stateful*> stateful = scene().all<Stateful>();
-    for (size_t i = 0; i < stateful.size(); ++i) {
-      if (stateful[i]->stateSlot() < 0) stateful[i]->setStateSlot(static_cast<int>(i));
-      auto* f = dynamic_cast<ForceField*>(stateful[i]);
-      const bool used = f && std::find(forces.begin(), forces.end(), f) != forces.end();
-      rest.add("", used ? stateful[i]->initialState() : nullptr);
-    }
+    State rest = scratchState(nullptr);
     BlockSparseMatrix A;
     factorizeAt(rest, x, r, A, chol);
   }

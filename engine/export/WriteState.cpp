@@ -93,12 +93,10 @@ class WriteState : public Component, public Observer {
     if (attrs_.isSet("mstate")) {
       c = linkedComponent("mstate");
     } else {
+      // SOFA's context rule: the last one of the node, else of the nearest node above.
       for (const Node* n = &node(); n && !c; n = n->parent())
-        for (const auto& comp : n->components())
-          if (dynamic_cast<MechanicalObject*>(comp.get()) || dynamic_cast<RigidObject*>(comp.get())) {
-            c = comp.get();
-            break;
-          }
+        for (auto it = n->components().rbegin(); it != n->components().rend() && !c; ++it)
+          if (dynamic_cast<MechanicalObject*>(it->get()) || dynamic_cast<RigidObject*>(it->get())) c = it->get();
       if (!c) throw error("no MechanicalObject in its node or above");
     }
     state_ = dynamic_cast<MechanicalObject*>(c);

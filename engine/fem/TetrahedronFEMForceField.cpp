@@ -86,7 +86,12 @@ std::unique_ptr<ComponentState> TetrahedronFEMForceField::initialState() const {
 void TetrahedronFEMForceField::Live::load(StateReader& in) {
   in.getSameSize(rot, "element frames");
   in.get(xLast);
-  in.get(plastic);
+  // Plastic strains: one column per element with plasticity on, none without.
+  Eigen::Matrix<double, 6, Eigen::Dynamic> p;
+  in.get(p);
+  if (p.cols() != plastic.cols())
+    in.mismatch(std::to_string(p.cols()) + " plastic strains where this component has " + std::to_string(plastic.cols()));
+  plastic = std::move(p);
 }
 
 void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd&,

@@ -48,6 +48,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
 
   fem::Method method() const { return method_; }
   const fem::Plasticity& plasticity() const { return plasticity_; }
+  // Each element's plastic strain in `s` (fem::Plasticity; no columns with plasticity off).
+  const Eigen::Matrix<double, 6, Eigen::Dynamic>& plasticStrains(const State& s) const { return live(s).plastic; }
   const TetList& tetrahedra() const { return tets_; }
   // Von Mises stress per element at x.
   Eigen::VectorXd vonMises(const Eigen::Matrix3Xd& x) const;
@@ -55,7 +57,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   std::function<Eigen::VectorXd(const Eigen::Matrix3Xd&)> vonMisesFunction() const;
   // Uses the exact tangent (with the derivative of the rotation) instead of SOFA's R^T K0 R.
   bool exactTangent() const { return exact_; }
-  void setExactTangent(bool on) override { exact_ = on; }
+  // With plasticity the exact tangent of the elastic force is not the plastic one: keep SOFA's.
+  void setExactTangent(bool on) override { exact_ = on && !plasticity_.on(); }
 
  private:
   fem::Mat34 gather(const Eigen::Matrix3Xd& x, int e) const;

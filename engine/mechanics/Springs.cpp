@@ -268,6 +268,9 @@ class InteractionSprings : public Component, public InteractionForceField, publi
                               std::to_string(side + 1) + ", " + std::to_string(n) + " nodes)");
       return static_cast<int>(i);
     });
+    // Both ends on one object: that object's springs, whatever solver moves it (MechanicalSystem
+    // takes them as its own force field).
+    if (obj_[0] == obj_[1]) return;
     const Node* n1 = integratingNode(*obj_[0]);
     const Node* n2 = integratingNode(*obj_[1]);
     if (n1 && n2 && n1 != n2)

@@ -420,4 +420,33 @@ TEST(InteractionSprings, ClearErrors) {
     <Node name="b"><EulerExplicitSolver/><MechanicalObject name="dofs" position="1 0 0"/><UniformMass vertexMass="1"/></Node>
     <SpringForceField object1="@anchor/dofs" object2="@b/dofs" spring="0 0 10 0 1"/></Node>)");
   EXPECT_NE(m.find("EulerImplicitSolver"), std::string::npos) << m;
+  // A contact correction computes the body's compliance without the springs to other objects.
+  m = message(R"(<Node name="root"><FreeMotionAnimationLoop/><GenericConstraintSolver/>
+    <Node name="anchor"><MechanicalObject name="dofs" position="0 0 0"/></Node>
+    <Node name="b"><EulerImplicitSolver/><SparseLDLSolver/><MechanicalObject name="dofs" position="1 0 0"/><UniformMass vertexMass="1"/>
+      <LinearSolverConstraintCorrection/></Node>
+    <SpringForceField name="tie" object1="@anchor/dofs" object2="@b/dofs" spring="0 0 10 0 1"/></Node>)");
+  EXPECT_NE(m.find("tied to another object"), std::string::npos) << m;
+  EXPECT_NE(m.find("tie"), std::string::npos) << m;
+}
+
+// Springs whose object1 and object2 are the same object are that object's own, wherever they are
+// placed and whatever solver moves it: the same motion, to the bit, as the springs in its node.
+TEST(InteractionSprings, BothEndsOnOneObjectAreItsOwnSprings) {
+  for (const std::string solver : {"<EulerImplicitSolver rayleighMass=\"0.1\"/><SparseLDLSolver/>", "<RungeKutta4Solver/>"}) {
+    const std::string inside = R"(<Node name="root" gravity="0 -9.81 0" dt="0.01">
+      <Node name="body">)" + solver + R"(
+        <MechanicalObject name="dofs" position="0 0 0  0.3 -1 0  0.5 -2 0.2"/>
+        <UniformMass vertexMass="0.5"/>
+        <FixedConstraint indices="0"/>
+        <SpringForceField spring="0 1 200 0.5 1  1 2 150 0.5 1"/>
+      </Node></Node>)";
+    std::string outside = inside;
+    outside.replace(outside.find("<SpringForceField"), std::string("<SpringForceField").size(),
+                    "</Node><SpringForceField object1=\"@body/dofs\" object2=\"@body/dofs\"");
+    outside.replace(outside.rfind("</Node></Node>"), 14, "</Node>");
+    const Eigen::Matrix3Xd a = allNodesAfter(inside, 100), b = allNodesAfter(outside, 100);
+    EXPECT_TRUE(a == b) << solver << "\n" << a << "\n" << b;
+    EXPECT_GT((a.col(2) - Eigen::Vector3d(0.5, -2, 0.2)).norm(), 0.1) << solver;
+  }
 }
