@@ -372,6 +372,7 @@ void registerSprings(Registry& r) {
   }
   ComponentSpec s;
   s.name = "SpringForceField";
+  s.aliases = {"StiffSpringForceField"};  // SOFA's name for it before they merged
   s.category = "forcefield";
   s.doc = "Springs between listed node pairs (SOFA's SpringForceField), of one MechanicalObject or, with object1 and "
           "object2, between two: `spring` gives \"i j "

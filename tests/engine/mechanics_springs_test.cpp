@@ -450,3 +450,13 @@ TEST(InteractionSprings, BothEndsOnOneObjectAreItsOwnSprings) {
     EXPECT_GT((a.col(2) - Eigen::Vector3d(0.5, -2, 0.2)).norm(), 0.1) << solver;
   }
 }
+
+// SOFA's older name, StiffSpringForceField, is the same component.
+TEST(InteractionSprings, StiffSpringForceFieldIsTheOlderName) {
+  const std::string linear = "<SparseLDLSolver/>";
+  std::string older = twoObjectChain(linear);
+  for (size_t p = older.find("<SpringForceField"); p != std::string::npos; p = older.find("<SpringForceField", p + 6))
+    older.replace(p, 17, "<StiffSpringForceField");
+  ASSERT_NE(older.find("StiffSpringForceField"), std::string::npos);
+  EXPECT_TRUE(allNodesAfter(older, 50) == allNodesAfter(twoObjectChain(linear), 50));
+}
