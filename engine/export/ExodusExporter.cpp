@@ -35,7 +35,7 @@ class ExodusExporter : public SeriesExporter {
     order_ = {"displacement"};
     for (const std::string& f : fieldNames())
       if (f != "displacement") order_.push_back(f);
-    for (const std::string& f : order_) (f == "vonMises" ? layout.cellScalars : layout.nodeVectors).push_back(f);
+    for (const std::string& f : order_) (cellField(f) ? layout.cellScalars : layout.nodeVectors).push_back(f);
     writer_.reset();
     writer_ = std::make_unique<io::ExodusWriter>(base() + ".exo", layout);
   }

@@ -36,12 +36,14 @@ void SeriesExporter::init() {
   if (fem_) scene().initComponent(*fem_);
   std::istringstream in(attrs_.str("fields"));
   for (std::string f; in >> f;) {
-    if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force")
-      throw error("fields", "unknown field '" + f + "' (choose from displacement, velocity, force, vonMises)");
+    if (f != "displacement" && f != "velocity" && f != "vonMises" && f != "force" && f != "plasticStrain")
+      throw error("fields", "unknown field '" + f + "' (choose from displacement, velocity, force, vonMises, plasticStrain)");
     if (f == "vonMises" && !fem_) {
       if (!attrs_.isSet("fields")) continue;  // the default list has it only beside a tetrahedral FEM
       throw error("fields", "vonMises needs a TetrahedronFEMForceField in the node");
     }
+    if (f == "plasticStrain" && !(fem_ && fem_->plasticity().on()))
+      throw error("fields", "plasticStrain needs a TetrahedronFEMForceField with plasticity (plasticMaxThreshold > 0) in the node");
     fields_.push_back(f);
   }
   // SOFA's form: "object.data" names a data field of the exported state.
@@ -61,6 +63,7 @@ void SeriesExporter::init() {
   // Only the arrays a frame needs are copied from the state.
   needV_ = std::find(fields_.begin(), fields_.end(), "velocity") != fields_.end();
   needF_ = std::find(fields_.begin(), fields_.end(), "force") != fields_.end();
+  needP_ = std::find(fields_.begin(), fields_.end(), "plasticStrain") != fields_.end();
 }
 
 void SeriesExporter::begin(const State& s, double t) {
@@ -125,6 +128,7 @@ SeriesExporter::Frame SeriesExporter::current(const State& s) const {
   fr.x = visual_ ? visual_->x(s) : state_->x(s);
   if (needV_) fr.v = state_->v(s);
   if (needF_) fr.f = state_->live(s).f;
+  if (needP_) fr.plastic = fem_->plasticStrains(s).colwise().norm().transpose();
   return fr;
 }
 
@@ -136,6 +140,7 @@ void SeriesExporter::keep(const State& s, int step) {
   kept_.x = visual_ ? visual_->x(s) : state_->x(s);
   if (needV_) kept_.v = state_->v(s);
   if (needF_) kept_.f = state_->live(s).f;
+  if (needP_) kept_.plastic = fem_->plasticStrains(s).colwise().norm().transpose();
   kept_.step = step;
 }
 
@@ -155,6 +160,9 @@ std::vector<SeriesExporter::Field> SeriesExporter::fieldsOf(const Frame& fr) con
     if (f == "vonMises") {
       field.onCells = true;
       field.cells = vonMises_(fr.x);
+    } else if (f == "plasticStrain") {
+      field.onCells = true;
+      field.cells = fr.plastic;
     } else {
       field.points = f == "displacement"    ? Eigen::Matrix3Xd(fr.x - rest_)
                      : f == "position"      ? fr.x
@@ -171,7 +179,7 @@ void SeriesExporter::addCommonAttributes(ComponentSpec& s) {
   s.add(AttrSpec::integer("exportEveryNumberOfSteps").def("1").atLeast(0).help("write every N steps (0: only at begin/end)"));
   s.add(AttrSpec::boolean("exportAtBegin").def("true").help("write the initial state"));
   s.add(AttrSpec::boolean("exportAtEnd").def("false").help("write the final state"));
-  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell field vonMises (by default only beside a TetrahedronFEMForceField; a visual surface: displacement only, its default)"));
+  s.add(AttrSpec::string("fields").def("displacement velocity vonMises").help("point fields displacement, velocity, force; cell fields vonMises (by default only beside a TetrahedronFEMForceField) and plasticStrain (the norm of each element's plastic strain, engineering shears, with SOFA's plasticity on); a visual surface: displacement only, its default"));
   s.add(AttrSpec::string("pointsDataFields").def("").help(
       "SOFA's form of extra point fields: object.field entries of the exported MechanicalObject (position, velocity, "
       "force, rest_position), written under the field's name"));

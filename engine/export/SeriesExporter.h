@@ -39,7 +39,10 @@ class SeriesExporter : public Component, public Observer {
   struct Frame {
     int step = -1;
     Eigen::Matrix3Xd x, v, f;
+    Eigen::VectorXd plastic;  // each element's plastic strain norm (field plasticStrain)
   };
+  // Whether field `name` lives on the cells (one value an element) rather than the points.
+  static bool cellField(const std::string& name) { return name == "vonMises" || name == "plasticStrain"; }
   // A field of a frame: on the points (3 components a point) or on the cells (one value a cell).
   struct Field {
     std::string name;
@@ -77,7 +80,7 @@ class SeriesExporter : public Component, public Observer {
   TetrahedronFEMForceField* fem_ = nullptr;
   VisualModel* visual_ = nullptr;  // set when writing a visual surface instead of the state
   int every_ = 1;
-  bool needV_ = false, needF_ = false;  // frames carry velocities / forces
+  bool needV_ = false, needF_ = false, needP_ = false;  // frames carry velocities / forces / plastic strains
   Eigen::Matrix3Xd rest_;  // the rest positions displacements are measured from
   TetList tets_;           // a volume's tetrahedra
   Eigen::Matrix<int, 3, Eigen::Dynamic> triangles_;  // a surface's triangles

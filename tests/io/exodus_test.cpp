@@ -18,6 +18,7 @@
 #include "core/Error.h"
 #include "core/Scene.h"
 #include "engine/Simulation.h"
+#include "engine/fem/TetrahedronFEMForceField.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/topology/GridSplit.h"
 #include "io/mesh/Exodus.h"
@@ -241,6 +242,36 @@ TEST(Exodus, ExporterWritesTheStateOfEachExportedStep) {
     EXPECT_TRUE(m.cellVariables().empty());
     EXPECT_LT((m.positions(static_cast<int>(states.size()) - 1) - states.back()).cwiseAbs().maxCoeff(), 1e-6);
   }
+}
+
+// With SOFA's plasticity on, the cell field plasticStrain is each element's plastic strain norm,
+// as the state holds it at the exported step (Float64: bit for bit); asked for without plasticity
+// it is refused, naming the field.
+TEST(Exodus, PlasticStrainIsACellField) {
+  const TempDir dir("viscera_exo");
+  std::string text = sagScene(3, R"(<ExodusExporter filename="plastic.exo" fields="vonMises plasticStrain" precision="float64"/>)");
+  const std::string elastic = R"(method="large"/>)";
+  text.replace(text.find(elastic), elastic.size(), R"(method="large" plasticMaxThreshold="1" plasticYieldThreshold="0" plasticCreep="0.2"/>)");
+  spit(dir.path() / "scene.xml", text);
+  auto scene = viscera::buildScene(viscera::io::readScene(dir / "scene.xml"));
+  scene->setOutputDirectory(dir / "out");
+  viscera::Simulation sim(*scene);
+  sim.begin();
+  for (int i = 0; i < 4; ++i) ASSERT_FALSE(sim.step());
+  const auto* fem = scene->all<viscera::TetrahedronFEMForceField>().front();
+  const Eigen::VectorXd expected = fem->plasticStrains(sim.state()).colwise().norm().transpose();
+  sim.end();
+  const ExodusReader r(dir / "out/plastic.exo");
+  EXPECT_EQ(r.cellVariables(), (std::vector<std::string>{"vonMises", "plasticStrain"}));
+  const Eigen::VectorXd written = r.cellVariable(static_cast<int>(r.times().size()) - 1, "plasticStrain");
+  EXPECT_TRUE(written == expected);
+  EXPECT_GT(written.maxCoeff(), 0.0);
+  spit(dir.path() / "elastic.xml", sagScene(3, R"(<ExodusExporter fields="plasticStrain"/>)"));
+  EXPECT_CONTAINS(errorOf([&] {
+                    auto s = viscera::buildScene(viscera::io::readScene(dir / "elastic.xml"));
+                    viscera::Simulation b(*s);
+                  }),
+                  "plasticStrain needs a TetrahedronFEMForceField with plasticity");
 }
 
 // Exporters end one after another: one whose series cannot be put in place (its name is now a
