@@ -16,6 +16,7 @@
 #include "core/Text.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidDynamics.h"
+#include "engine/rigid/RigidObject.h"
 #include "core/State.h"
 #include "solvers/linear/BlockSparseMatrix.h"
 
@@ -251,7 +252,10 @@ class InteractionSprings : public Component, public InteractionForceField, publi
     for (int k = 0; k < 2; ++k) {
       const char* attr = k ? "object2" : "object1";
       if (attrs_.isSet(attr)) {
-        obj_[k] = dynamic_cast<MechanicalObject*>(linkedComponent(attr));
+        Component* c = linkedComponent(attr);
+        obj_[k] = dynamic_cast<MechanicalObject*>(c);
+        if (dynamic_cast<RigidObject*>(c))
+          throw error(attr, "links to the rigid body '" + c->name() + "'; springs on a Rigid3d object are not handled");
         if (!obj_[k]) throw error(attr, "does not link to a MechanicalObject");
         scene().initComponent(*obj_[k]);
       } else {

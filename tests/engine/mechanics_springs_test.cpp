@@ -428,6 +428,12 @@ TEST(InteractionSprings, ClearErrors) {
     <SpringForceField name="tie" object1="@anchor/dofs" object2="@b/dofs" spring="0 0 10 0 1"/></Node>)");
   EXPECT_NE(m.find("tied to another object"), std::string::npos) << m;
   EXPECT_NE(m.find("tie"), std::string::npos) << m;
+  // A rigid body's frame is not a spring end.
+  m = message(R"(<Node name="root"><EulerImplicitSolver/><SparseLDLSolver/>
+    <Node name="a"><MechanicalObject name="dofs" position="0 0 0"/><UniformMass vertexMass="1"/></Node>
+    <Node name="r"><MechanicalObject name="frame" template="Rigid3d" position="1 0 0 0 0 0 1"/><UniformMass totalMass="1"/></Node>
+    <SpringForceField object1="@a/dofs" object2="@r/frame" spring="0 0 10 0 1"/></Node>)");
+  EXPECT_NE(m.find("Rigid3d"), std::string::npos) << m;
 }
 
 // Springs whose object1 and object2 are the same object are that object's own, wherever they are
