@@ -99,32 +99,20 @@ void TetrahedronFEMForceField::addForce(State& s, const Eigen::Matrix3Xd& x, con
   Live& l = live(s);
   if (exact_) l.xLast = x;
   std::vector<Eigen::Matrix3d>& rot = l.rot;
-  if (plasticity_.on()) {
-    // Element by element: each updates its plastic strain from its local displacement.
-    forEachColored(*colors_, [&](int e) {
-      const Mat34 xe = gather(x, e);
-      rot[e] = svd_ ? fem::frameSvd(rest_[e], xe) : fem::frame(method_, xe);
-      const Mat34 U = fem::localPositions(svd_ ? fem::Method::Polar : method_, rot[e], xe) - rest_[e].X;
-      const Mat34 fe = rot[e].transpose() * fem::plasticForce(rest_[e], U, plasticity_, l.plastic.col(e));
-      for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
-    });
-    return;
-  }
-  if (method_ == fem::Method::Large && !svd_) {
+  if (method_ == fem::Method::Large && !svd_ && !plasticity_.on()) {
     forEachColoredRun(*colors_, [&](int first, int count) {
       fem::addLargeTetrahedraForces(x.data(), tets_.data(), first, count, rest_, lanes_, rot.data(), f.data());
     });
     return;
   }
+  // Element by element (fem::elementForce written out, so that a plastic element can update its
+  // plastic strain from its local displacement).
   forEachColored(*colors_, [&](int e) {
     const Mat34 xe = gather(x, e);
-    Mat34 fe;
-    if (svd_) {
-      rot[e] = fem::frameSvd(rest_[e], xe);
-      fe = fem::elementForceInFrame(rest_[e], xe, rot[e]);
-    } else {
-      fe = fem::elementForce(method_, rest_[e], xe, rot[e]);
-    }
+    rot[e] = svd_ ? fem::frameSvd(rest_[e], xe) : fem::frame(method_, xe);
+    const Mat34 U = fem::localPositions(svd_ ? fem::Method::Polar : method_, rot[e], xe) - rest_[e].X;
+    const Mat34 fe = rot[e].transpose() * (plasticity_.on() ? fem::plasticForce(rest_[e], U, plasticity_, l.plastic.col(e))
+                                                            : fem::elasticForce(rest_[e], U));
     for (int k = 0; k < 4; ++k) f.col(tets_(k, e)) += fe.col(k);
   });
 }

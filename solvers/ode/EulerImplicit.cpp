@@ -148,7 +148,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       InteractionForceField::SideForces out{};
       for (int side = 0; side < 2; ++side)
         if (c.body[side] >= 0) out[side] = &Kv[K(c.body[side])];
-      c.ff->addDForce(st, bodySides(st, c, &MechanicalObject::Live::v), out, 1.0);
+      c.ff->addDForce(st, sides(st, c, &MechanicalObject::Live::v, false), out, 1.0);
     }
     for (int k = 0; k < bodies; ++k) {
       const MechanicalSystem& sys = *systems_[K(k)];
@@ -286,17 +286,13 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       couplings_.push_back(c);
     }
   }
-  // A coupling's sides: the bodies' vectors (positions or velocities), an object held still's own.
-  InteractionForceField::Sides sides(const State& st, const Coupling& c, Eigen::Matrix3Xd MechanicalObject::Live::*v) const {
-    InteractionForceField::Sides out{};
-    for (int side = 0; side < 2; ++side) out[side] = &(c.ff->object(side).live(st).*v);
-    return out;
-  }
-  // The same for the integrated sides only (null for a side held still).
-  InteractionForceField::Sides bodySides(const State& st, const Coupling& c, Eigen::Matrix3Xd MechanicalObject::Live::*v) const {
+  // A coupling's sides' vectors (positions or velocities): the bodies', and an object held still's
+  // own, or null for it without `anchors`.
+  InteractionForceField::Sides sides(const State& st, const Coupling& c, Eigen::Matrix3Xd MechanicalObject::Live::*v,
+                                     bool anchors = true) const {
     InteractionForceField::Sides out{};
     for (int side = 0; side < 2; ++side)
-      if (c.body[side] >= 0) out[side] = &(c.ff->object(side).live(st).*v);
+      if (anchors || c.body[side] >= 0) out[side] = &(c.ff->object(side).live(st).*v);
     return out;
   }
   InteractionForceField::SideForces bodyVectors(State& st, const Coupling& c) const {
