@@ -236,6 +236,46 @@ __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest
     blocksAvx2(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
   }
 }
+
+// The same blocks with AVX-512: eight of a block's nine entries (by columns) in one vector, so
+// that each block is two fused multiply-adds and one load-add-store (a third less time than
+// blocksAvx2 on the gel phantom); the ninth entry as there. The same operations in the same order
+// as blocksAvx2, so the same rounding.
+__attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void blocksAvx512(const double* R, const double* G, double la,
+                                                                                       double ma, double* values, const int* slots) {
+  double h[4][3];  // h = R^T G
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r) h[k][r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
+  // Lane p of a block holds entry (r, c) = (p % 3, p / 3): P = h by rows, S = h by columns.
+  const __m512i rowOf = _mm512_set_epi64(1, 0, 2, 1, 0, 2, 1, 0), colOf = _mm512_set_epi64(2, 2, 1, 1, 1, 0, 0, 0);
+  __m512d S[4], laP[4], maP[4];
+  for (int k = 0; k < 4; ++k) {
+    const __m512d v = _mm512_maskz_loadu_pd(0x7, h[k]);
+    const __m512d P = _mm512_maskz_permutexvar_pd(0xff, rowOf, v);
+    S[k] = _mm512_maskz_permutexvar_pd(0xff, colOf, v);
+    laP[k] = _mm512_mul_pd(_mm512_set1_pd(la), P);
+    maP[k] = _mm512_mul_pd(_mm512_set1_pd(ma), P);
+  }
+  const double lm = la + ma;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
+      const __m512d diag = _mm512_maskz_mov_pd(0x11, _mm512_set1_pd(d));  // entries (0, 0) and (1, 1)
+      const __m512d v = _mm512_fmadd_pd(laP[i], S[j], _mm512_fmadd_pd(maP[j], S[i], diag));
+      double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
+      _mm512_storeu_pd(k, _mm512_add_pd(_mm512_loadu_pd(k), v));
+      k[8] += lm * h[i][2] * h[j][2] + d;
+    }
+}
+
+__attribute__((target("avx512f,avx512vl,fma"))) void blocksRangeAvx512(const ElementRest* rest, const double* R, const int* slots,
+                                                                      int first, int count, double kFactor, double* values) {
+  for (int e = first; e < first + count; ++e) {
+    const ElementRest& r = rest[e];
+    const double a = -kFactor * r.volume;
+    blocksAvx512(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+  }
+}
 #endif
 
 void blocksRangeGeneric(const ElementRest* rest, const double* R, const int* slots, int first, int count, double kFactor,
@@ -306,18 +346,23 @@ __attribute__((target("avx2,fma"))) void largeVonMisesAvx2(const double* x, cons
 
 // Chosen once, on first use.
 struct Kernels {
-  bool avx2 = false;
+  const char* version = "generic";
   BlocksKernel blocks = blocksRangeGeneric;
   ForcesKernel forces = largeForcesGeneric;
   InvertedKernel inverted = invertedGeneric;
   VonMisesKernel vonMises = largeVonMisesGeneric;
   Kernels() {
 #if defined(__x86_64__)
-    if ((avx2 = useAvx2())) {
+    if (useAvx2()) {
+      version = "avx2";
       blocks = blocksRangeAvx2;
       forces = largeForcesAvx2;
       inverted = invertedAvx2;
       vonMises = largeVonMisesAvx2;
+    }
+    if (useAvx512()) {
+      version = "avx512";
+      blocks = blocksRangeAvx512;
     }
 #endif
   }
@@ -368,6 +413,6 @@ std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std:
   return bad;
 }
 
-const char* tetrahedronKernelsVersion() { return kernels().avx2 ? "avx2" : "generic"; }
+const char* tetrahedronKernelsVersion() { return kernels().version; }
 
 }  // namespace viscera::fem

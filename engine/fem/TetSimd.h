@@ -1,7 +1,8 @@
-// The assembled step's hottest per-element kernel on plain arrays, with a vector (AVX2 + FMA)
-// version chosen at run time when the CPU has it: the build targets a baseline x86-64, and this
-// loop is a third of the gel phantom's step. Both versions compute the same blocks; they differ
-// only in rounding (fused multiply-adds).
+// The assembled step's hottest per-element kernels on plain arrays, with vector (AVX2 + FMA)
+// versions chosen at run time when the CPU has them: the build targets a baseline x86-64, and these
+// loops are a third of the gel phantom's step. The stiffness blocks also have an AVX-512 version
+// (the same operations as the AVX2 one, eight entries of a block per vector). The versions compute
+// the same results; they differ only in rounding (fused multiply-adds).
 #pragma once
 
 #include <Eigen/Core>
@@ -40,7 +41,8 @@ void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector
 // sign), or is degenerate: the health check after each step, four elements at a time.
 std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);
 
-// Which version the kernels run: "avx2" or "generic".
+// Which version the kernels run: "avx512" (the stiffness blocks; the others AVX2), "avx2" or
+// "generic".
 const char* tetrahedronKernelsVersion();
 
 }  // namespace viscera::fem

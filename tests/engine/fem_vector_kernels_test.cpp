@@ -1,7 +1,7 @@
 // The hand-vectorised kernels of the assembled step (engine/fem/TetSimd.h, the block product of
 // solvers/linear/BlockSparseMatrix) against the Eigen definitions in engine/fem/TetKernel.h and
-// a dense product. The same tests run once more under VISCERA_SIMD=generic (tests/CMakeLists.txt),
-// so both versions are checked on a CPU with AVX2. Tolerance 1e-12 relative: the versions differ
+// a dense product. The same tests run once more under VISCERA_SIMD=generic and VISCERA_SIMD=avx2
+// (tests/CMakeLists.txt), so every version the CPU has is checked. Tolerance 1e-12 relative: the versions differ
 // only in the order of a few dozen floating-point operations (and in fused multiply-adds).
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -155,12 +155,14 @@ TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
   EXPECT_EQ(fem::invertedTetrahedra(x.data(), tets.data(), elements), expected);
 }
 
-// On a CPU with AVX2 and FMA the vector versions run, unless the environment asks otherwise.
+// On a CPU with AVX2 and FMA the vector versions run, and the AVX-512 ones where it also has
+// AVX-512F and VL, unless the environment asks for less.
 TEST(VectorKernels, TheVectorVersionsRunWhereTheCpuHasThem) {
-  const char* forced = std::getenv("VISCERA_SIMD");
+  const std::string forced = std::getenv("VISCERA_SIMD") ? std::getenv("VISCERA_SIMD") : "";
   __builtin_cpu_init();
-  const bool cpu = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  EXPECT_STREQ(fem::tetrahedronKernelsVersion(), cpu && !(forced && std::string(forced) == "generic") ? "avx2" : "generic");
+  const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && forced != "generic";
+  const bool avx512 = avx2 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") && forced != "avx2";
+  EXPECT_STREQ(fem::tetrahedronKernelsVersion(), avx512 ? "avx512" : avx2 ? "avx2" : "generic");
 }
 
 // A collapsed element (all nodes on one point) gets a zero frame and finite forces, as in the
