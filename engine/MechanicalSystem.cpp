@@ -1,6 +1,9 @@
 #include <Eigen/Dense>
 #include "engine/MechanicalSystem.h"
 
+#include <cstdlib>
+#include <string>
+
 #include <Eigen/Eigenvalues>
 #include <map>
 
@@ -149,6 +152,24 @@ void MechanicalSystem::prepareAssembly() {
   pattern_.setPattern(nodes(), pairs);
   for (ForceField* ff : forces_) ff->prepareAssembly(pattern_);
   patternReady_ = true;
+}
+
+bool MechanicalSystem::prepareUpperAssembly() {
+  if (!patternReady_) throw std::logic_error("MechanicalSystem::prepareUpperAssembly before prepareAssembly");
+  if (upperPattern_.upper()) return true;
+  // VISCERA_MATRIX=full keeps the full storage (to compare, or to rule the upper storage out).
+  static const bool fullOnly = [] {
+    const char* e = std::getenv("VISCERA_MATRIX");
+    return e && std::string(e) == "full";
+  }();
+  if (fullOnly || !internal_.empty() || !consistent_.empty()) return false;
+  for (const ForceField* ff : forces_)
+    if (!ff->assemblesUpper()) return false;
+  std::vector<std::pair<int, int>> pairs;
+  for (ForceField* ff : forces_) ff->stiffnessPattern(pairs);
+  upperPattern_.setPattern(nodes(), pairs, BlockSparseMatrix::Storage::Upper);
+  for (ForceField* ff : forces_) ff->prepareAssembly(upperPattern_);
+  return true;
 }
 
 void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale, double factor) const {

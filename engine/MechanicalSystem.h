@@ -57,6 +57,13 @@ class MechanicalSystem {
   void prepareAssembly();
   // The prepared pattern, with zero values.
   const BlockSparseMatrix& pattern() const { return pattern_; }
+  // The same pattern in upper storage (half the memory, faster products), where every
+  // contribution is symmetric and assembles that way: force fields that say so
+  // (ForceField::assemblesUpper), no interaction fields inside the object, no consistent masses.
+  // Returns whether it could; after prepareAssembly. A matrix that starts as upperPattern()
+  // assembles in upper storage.
+  bool prepareUpperAssembly();
+  const BlockSparseMatrix& upperPattern() const { return upperPattern_; }
   // factor (K_damped + undampedScale K_undamped) (as the force fields report it at their last
   // linearisation in `s`) into `K`, which takes the prepared pattern on first use.
   void assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale = 1.0, double factor = 1.0) const;
@@ -77,6 +84,7 @@ class MechanicalSystem {
   Eigen::VectorXd diagonalMass_;      // the sum of the lumped masses
   std::vector<Mass*> consistent_;     // masses with off-diagonal terms
   BlockSparseMatrix pattern_;        // the assembled matrix's pattern, zero values
+  BlockSparseMatrix upperPattern_;   // the same in upper storage, if prepared
   bool patternReady_ = false;
 };
 

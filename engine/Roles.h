@@ -52,6 +52,9 @@ class ForceField {
   virtual void prepareAssembly(const BlockSparseMatrix& K) {}
   // K += kFactor * (the force field's K).
   virtual void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {}
+  // Whether addStiffness also fills a matrix in upper storage (BlockSparseMatrix::Storage::Upper):
+  // its K is symmetric and it skips the blocks below the diagonal (slot -1).
+  virtual bool assemblesUpper() const { return false; }
   // Potential energy at x (0 when the field has none).
   virtual double potentialEnergy(const Eigen::Matrix3Xd& x) const { return 0.0; }
   // Whether Rayleigh stiffness damping applies to this field's K. Contact penalties return false:

@@ -228,6 +228,7 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const override;
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
+  bool assemblesUpper() const override { return true; }  // w_a w_b k n n^T: symmetric
   bool rayleighDamped() const override { return false; }
   // Sets each contact's force from the end-of-step positions, or the force held over the step
   // between two integrated bodies (penalty response).

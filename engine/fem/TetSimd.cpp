@@ -26,6 +26,7 @@ inline void blocksGeneric(const double* R, const double* G, double la, double ma
     for (int j = 0; j < 4; ++j) {
       const double* hi = h + 3 * i;
       const double* hj = h + 3 * j;
+      if (slots[4 * j + i] < 0) continue;  // not stored (upper storage)
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
       double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
       for (int c = 0; c < 3; ++c)
@@ -216,6 +217,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const 
   const double lm = la + ma;
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) {
+      if (slots[4 * j + i] < 0) continue;
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
       const __m256d diag = _mm256_set_pd(0, 0, 0, d);
       const __m256d v0 = _mm256_fmadd_pd(laP[i], S[j], _mm256_fmadd_pd(maP[j], S[i], diag));
@@ -259,6 +261,7 @@ __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void block
   const double lm = la + ma;
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) {
+      if (slots[4 * j + i] < 0) continue;
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
       const __m512d diag = _mm512_maskz_mov_pd(0x11, _mm512_set1_pd(d));  // entries (0, 0) and (1, 1)
       const __m512d v = _mm512_fmadd_pd(laP[i], S[j], _mm512_fmadd_pd(maP[j], S[i], diag));

@@ -17,7 +17,8 @@ namespace viscera::fem {
 //   K_ij += a (lambda h_i h_j^T + mu h_j h_i^T + mu (g_i . g_j) I),   h = R^T G,  a = -kFactor V,
 // for all 16 node pairs (i, j) of each element, where R is the element's frame (R[e]) and G its
 // rest shape-function gradients. `values` holds the matrix's row-major 3 x 3 blocks and
-// slots[e] the element's 16 block slots, row-major (slot of (i, j) at 4 i + j).
+// slots[e] the element's 16 block slots, row-major (slot of (i, j) at 4 i + j); a block whose slot
+// is -1 is not stored (upper storage) and is skipped.
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
                          int first, int count, double kFactor, double* values);
 

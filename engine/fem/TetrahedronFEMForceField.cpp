@@ -151,27 +151,30 @@ void TetrahedronFEMForceField::stiffnessPattern(std::vector<std::pair<int, int>>
 }
 
 void TetrahedronFEMForceField::prepareAssembly(const BlockSparseMatrix& K) {
-  slots_.resize(tets_.cols());
+  auto& slots = slots_[K.upper()];
+  slots.resize(tets_.cols());
   for (int e = 0; e < tets_.cols(); ++e)
     for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) slots_[e][4 * i + j] = K.slot(tets_(i, e), tets_(j, e));
+      for (int j = 0; j < 4; ++j) slots[e][4 * i + j] = K.slot(tets_(i, e), tets_(j, e));
 }
 
 void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
-  if (slots_.size() != static_cast<size_t>(tets_.cols())) throw std::logic_error("addStiffness before prepareAssembly");
+  const auto& slots = slots_[K.upper()];
+  if (slots.size() != static_cast<size_t>(tets_.cols())) throw std::logic_error("addStiffness before prepareAssembly");
   const Live& l = live(s);
   if (exact_ && method_ != fem::Method::Small) {
+    if (K.upper()) throw std::logic_error("the exact tangent is not symmetric: it needs the full storage");
     forEachColored(*colors_, [&](int e) {
       const Mat12 Ke = stiffnessOf(l, e);
       for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) K.block(slots_[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
+        for (int j = 0; j < 4; ++j) K.block(slots[e][4 * i + j]) += kFactor * Ke.block<3, 3>(3 * i, 3 * j);
     });
     return;
   }
   // Blocks -V times the law's coupling of the rotated gradients h = R^T G (Lame::coupling,
   // written out on plain arrays, vectorised where the CPU allows: this loop is a fifth of a step).
   forEachColoredRun(*colors_, [&](int first, int count) {
-    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots_.data(), first, count, kFactor, K.values());
+    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, K.values());
   });
 }
 

@@ -41,6 +41,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void prepareAssembly(const BlockSparseMatrix& K) override;
   void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
+  // R K0 R^T is symmetric; the exact tangent is not.
+  bool assemblesUpper() const override { return !exact_ || method_ == fem::Method::Small; }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override;
   std::vector<int> invertedElements(const Eigen::Matrix3Xd& x) const override;
   // Each node's rest -> current rotation, from its elements' frames at the last addForce.
@@ -76,7 +78,8 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest
   std::vector<double> lanes_;              // rest data four elements abreast (fem::largeTetrahedraLanes)
   std::shared_ptr<const ElementColoring> colors_;  // shared by models of one mesh
-  std::vector<std::array<int, 16>> slots_; // block slots of each element in the assembled matrix
+  // Block slots of each element in the assembled matrix, for the full and the upper storage.
+  std::array<std::vector<std::array<int, 16>>, 2> slots_;
 };
 
 void registerTetrahedronFEM(Registry& r);

@@ -285,6 +285,7 @@ class BoxROI : public Component {
 class TrianglePressureForceField : public Component, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // adds no stiffness
   MechanicalObject& mstate() const override { return *state_; }
   void init() override {
     state_ = &contextState(*this);
@@ -336,6 +337,7 @@ class TrianglePressureForceField : public Component, public ForceField {
 class PlaneForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // diagonal blocks only
   MechanicalObject& mstate() const override { return *state_; }
   struct Live : ComponentStateOf<Live> {
     std::vector<char> inside;  // per node, below the plane at the last addForce
@@ -396,6 +398,7 @@ class PlaneForceField : public Component, public ForceField, public Stateful {
 class ConstantForceField : public Component, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // adds no stiffness
   MechanicalObject& mstate() const override { return *state_; }
   void init() override {
     state_ = &contextState(*this);

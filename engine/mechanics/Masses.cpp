@@ -22,6 +22,7 @@ namespace {
 class LumpedMass : public Component, public Mass, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // adds no stiffness
   MechanicalObject& mstate() const override { return *state_; }
   const Eigen::VectorXd& nodeMass() const override { return m_; }
   void addForce(State& s, const Eigen::Matrix3Xd&, const Eigen::Matrix3Xd&, Eigen::Matrix3Xd& f) const override {

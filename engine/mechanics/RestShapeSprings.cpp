@@ -14,6 +14,7 @@ namespace {
 class RestShapeSpringsForceField : public Component, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // diagonal blocks only
   MechanicalObject& mstate() const override { return *state_; }
   void init() override {
     state_ = &contextState(*this);

@@ -84,6 +84,7 @@ struct SpringsLive : ComponentStateOf<SpringsLive> {
 class MeshSpringForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // symmetric; skips the blocks not stored
   MechanicalObject& mstate() const override { return *state_; }
   using Live = SpringsLive;
   std::unique_ptr<ComponentState> initialState() const override {
@@ -222,8 +223,8 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
       const Eigen::Matrix3d B = kFactor * J[i];
       K.block(K.diagonalSlot(s.a)) -= B;
       K.block(K.diagonalSlot(s.b)) -= B;
-      K.block(K.slot(s.a, s.b)) += B;
-      K.block(K.slot(s.b, s.a)) += B;
+      for (const int slot : {K.slot(s.a, s.b), K.slot(s.b, s.a)})
+        if (slot >= 0) K.block(slot) += B;
     }
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override {

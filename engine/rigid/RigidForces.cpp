@@ -169,6 +169,7 @@ class RigidLinearForce : public Component, public RigidForce {
 class LinearForceField : public Component, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // adds no stiffness
   MechanicalObject& mstate() const override { return *state_; }
   void init() override {
     state_ = &contextState(*this);

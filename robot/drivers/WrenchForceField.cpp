@@ -20,6 +20,7 @@ namespace {
 class WrenchForceField : public Component, public ForceField {
  public:
   using Component::Component;
+  bool assemblesUpper() const override { return true; }  // adds no stiffness
   MechanicalObject& mstate() const override { return *state_; }
 
   void init() override {

@@ -5,17 +5,20 @@
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 namespace viscera {
 
-void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int, int>>& pairs) {
+void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int, int>>& pairs, Storage storage) {
+  storage_ = storage;
   n_ = nBlocks;
   std::vector<std::vector<int>> rows(n_);
   for (int i = 0; i < n_; ++i) rows[i].push_back(i);
   for (const auto& [i, j] : pairs) {
-    rows[i].push_back(j);
-    rows[j].push_back(i);
+    if (storage != Storage::Upper || i <= j) rows[i].push_back(j);
+    if (storage != Storage::Upper || j <= i) rows[j].push_back(i);
   }
   rowStart_.assign(n_ + 1, 0);
   cols_.clear();
@@ -31,11 +34,24 @@ void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int,
     }
   }
   rowStart_[n_] = static_cast<int>(cols_.size());
+  colStart_.clear();
+  colBlocks_.clear();
+  if (upper()) {
+    colStart_.assign(n_ + 1, 0);
+    for (int k = 0; k < n_; ++k)
+      for (int s = rowStart_[k] + 1; s < rowStart_[k + 1]; ++s) ++colStart_[cols_[s] + 1];
+    for (int j = 0; j < n_; ++j) colStart_[j + 1] += colStart_[j];
+    colBlocks_.resize(colStart_[n_]);
+    std::vector<int> next(colStart_.begin(), colStart_.end() - 1);
+    for (int k = 0; k < n_; ++k)  // rows in order: each column's list comes out ascending
+      for (int s = rowStart_[k] + 1; s < rowStart_[k + 1]; ++s) colBlocks_[next[cols_[s]]++] = {k, s};
+  }
   // One double of padding: the vector kernels load each block row as four doubles.
   values_.assign(9 * cols_.size() + 1, 0.0);
 }
 
 int BlockSparseMatrix::slot(int i, int j) const {
+  if (upper() && j < i) return -1;
   auto b = cols_.begin() + rowStart_[i], e = cols_.begin() + rowStart_[i + 1];
   auto it = std::lower_bound(b, e, j);
   return it != e && *it == j ? static_cast<int>(it - cols_.begin()) : -1;
@@ -60,6 +76,65 @@ void multiplyRowsBaseline(const int* rowStart, const int* cols, const double* va
     for (int s = rowStart[i]; s < rowStart[i + 1]; ++s)
       acc.noalias() += Eigen::Map<const BlockSparseMatrix::Block>(values + 9 * s) * Eigen::Map<const Eigen::Vector3d>(x + 3 * cols[s]);
     Eigen::Map<Eigen::Vector3d>(y + 3 * i) = acc;
+  }
+}
+
+// Upper storage: row i's first block is its diagonal. Block (i, j) above the diagonal adds
+// B x_j to y_i and B^T x_i to y_j. One thread sweeps the rows and scatters the transposed products
+// (y zeroed first); several threads gather them, row j taking its column's blocks (k, j) in
+// ascending k. Both add each transposed product t to y_j (or its running sum) in that order, then
+// the row's own sum: the same result to the bit.
+struct UpperPattern {
+  const int* rowStart;
+  const int* cols;
+  const double* values;
+  const int* colStart;
+  const std::pair<int, int>* colBlocks;
+  int n;
+};
+using UpperKernel = void (*)(UpperPattern A, const double* x, double* y, int r0, int r1);  // A by value: a local copy that no store through y can alias
+
+// B^T u, for the block at b (row-major).
+inline void transposedTimes(const double* b, const double* u, double (&t)[3]) {
+  for (int c = 0; c < 3; ++c) t[c] = b[c] * u[0] + b[3 + c] * u[1] + b[6 + c] * u[2];
+}
+
+// Row i's own sum: its blocks times the x_j, added to acc.
+inline void upperRowSum(const UpperPattern& A, const double* x, int i, double (&acc)[3]) {
+  double r[3] = {0, 0, 0};
+  for (int s = A.rowStart[i]; s < A.rowStart[i + 1]; ++s) {
+    const double* b = A.values + 9 * static_cast<long>(s);
+    const double* u = x + 3 * static_cast<long>(A.cols[s]);
+    for (int k = 0; k < 3; ++k) r[k] += b[3 * k] * u[0] + b[3 * k + 1] * u[1] + b[3 * k + 2] * u[2];
+  }
+  for (int k = 0; k < 3; ++k) acc[k] += r[k];
+}
+
+void upperScatterBaseline(UpperPattern A, const double* x, double* y, int, int) {
+  std::fill(y, y + 3 * static_cast<long>(A.n), 0.0);
+  for (int i = 0; i < A.n; ++i) {
+    for (int s = A.rowStart[i] + 1; s < A.rowStart[i + 1]; ++s) {
+      double t[3];
+      transposedTimes(A.values + 9 * static_cast<long>(s), x + 3 * static_cast<long>(i), t);
+      for (int c = 0; c < 3; ++c) y[3 * static_cast<long>(A.cols[s]) + c] += t[c];
+    }
+    double acc[3] = {y[3 * i], y[3 * i + 1], y[3 * i + 2]};
+    upperRowSum(A, x, i, acc);
+    for (int k = 0; k < 3; ++k) y[3 * i + k] = acc[k];
+  }
+}
+
+void upperGatherBaseline(UpperPattern A, const double* x, double* y, int r0, int r1) {
+  for (int j = r0; j < r1; ++j) {
+    double acc[3] = {0, 0, 0};
+    for (int q = A.colStart[j]; q < A.colStart[j + 1]; ++q) {
+      const auto [k, s] = A.colBlocks[q];
+      double t[3];
+      transposedTimes(A.values + 9 * static_cast<long>(s), x + 3 * static_cast<long>(k), t);
+      for (int c = 0; c < 3; ++c) acc[c] += t[c];
+    }
+    upperRowSum(A, x, j, acc);
+    for (int k = 0; k < 3; ++k) y[3 * j + k] = acc[k];
   }
 }
 
@@ -109,6 +184,101 @@ __attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, c
     y[3 * i + 2] = _mm_cvtsd_f64(s22);
   }
 }
+// The upper-storage product with AVX2: block rows loaded as in multiplyRowsAvx2 (the fourth lane
+// cleared where it enters the transposed product). y_j is updated as two doubles and one, never as
+// four: a four-double store overlapping the next node's load would stall store forwarding.
+__attribute__((target("avx2,fma"), always_inline)) inline void upperLoad(const double* b, __m256d keep, __m256d (&r)[3]) {
+  for (int k = 0; k < 3; ++k) r[k] = _mm256_and_pd(_mm256_loadu_pd(b + 3 * k), keep);
+}
+
+// B^T u from B's rows r and u's entries broadcast in u0, u1, u2.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d upperTransposed(const __m256d (&r)[3], __m256d u0, __m256d u1,
+                                                                                __m256d u2) {
+  return _mm256_fmadd_pd(r[2], u2, _mm256_fmadd_pd(r[1], u1, _mm256_mul_pd(r[0], u0)));
+}
+
+// Row i's own sum (the diagonal block first, then the others in order, as multiplyRowsAvx2 but
+// in one set of accumulators), in three steps: start, add a block, finish by adding the row's
+// sums to (lo, hi) = y_i's first two entries and its third.
+struct RowSum {
+  __m256d a0, a1, a2;
+};
+
+__attribute__((target("avx2,fma"), always_inline)) inline void rowSumStart(RowSum& r, const double* d, __m256d xi) {
+  r.a0 = _mm256_mul_pd(_mm256_loadu_pd(d), xi);
+  r.a1 = _mm256_mul_pd(_mm256_loadu_pd(d + 3), xi);
+  r.a2 = _mm256_mul_pd(_mm256_loadu_pd(d + 6), xi);
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline void rowSumAdd(RowSum& r, const __m256d (&b)[3], __m256d u) {
+  r.a0 = _mm256_fmadd_pd(b[0], u, r.a0);
+  r.a1 = _mm256_fmadd_pd(b[1], u, r.a1);
+  r.a2 = _mm256_fmadd_pd(b[2], u, r.a2);
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline void rowSumFinish(const RowSum& r, __m256d keep, __m128d& lo, double& hi) {
+  const __m256d a0 = _mm256_and_pd(r.a0, keep), a1 = _mm256_and_pd(r.a1, keep), a2 = _mm256_and_pd(r.a2, keep);
+  const __m256d h01 = _mm256_hadd_pd(a0, a1), h22 = _mm256_hadd_pd(a2, a2);
+  lo = _mm_add_pd(lo, _mm_add_pd(_mm256_castpd256_pd128(h01), _mm256_extractf128_pd(h01, 1)));
+  hi += _mm_cvtsd_f64(_mm_add_sd(_mm256_castpd256_pd128(h22), _mm256_extractf128_pd(h22, 1)));
+}
+
+// One sweep: each block (i, j) adds to row i's sum and, transposed, to y_j.
+__attribute__((target("avx2,fma"))) void upperScatterAvx2(UpperPattern A, const double* x, double* y, int, int) {
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  const __m256d keep = _mm256_castsi256_pd(three);
+  std::fill(y, y + 3 * static_cast<long>(A.n), 0.0);
+  for (int i = 0; i < A.n; ++i) {
+    // Broadcast once: y's stores could alias x as far as the compiler knows.
+    const __m256d x0 = _mm256_set1_pd(x[3 * static_cast<long>(i)]), x1 = _mm256_set1_pd(x[3 * static_cast<long>(i) + 1]),
+                  x2 = _mm256_set1_pd(x[3 * static_cast<long>(i) + 2]);
+    RowSum sum;
+    rowSumStart(sum, A.values + 9 * static_cast<long>(A.rowStart[i]), triple(x, i, A.n, three));
+    for (int s = A.rowStart[i] + 1; s < A.rowStart[i + 1]; ++s) {
+      __m256d r[3];
+      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
+      const int j = A.cols[s];
+      rowSumAdd(sum, r, triple(x, j, A.n, three));
+      const __m256d t = upperTransposed(r, x0, x1, x2);
+      double* yj = y + 3 * static_cast<long>(j);
+      _mm_storeu_pd(yj, _mm_add_pd(_mm_loadu_pd(yj), _mm256_castpd256_pd128(t)));
+      yj[2] += _mm_cvtsd_f64(_mm256_extractf128_pd(t, 1));
+    }
+    __m128d lo = _mm_loadu_pd(y + 3 * static_cast<long>(i));
+    double hi = y[3 * static_cast<long>(i) + 2];
+    rowSumFinish(sum, keep, lo, hi);
+    _mm_storeu_pd(y + 3 * static_cast<long>(i), lo);
+    y[3 * static_cast<long>(i) + 2] = hi;
+  }
+}
+
+__attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const double* x, double* y, int r0, int r1) {
+  const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
+  const __m256d keep = _mm256_castsi256_pd(three);
+  for (int j = r0; j < r1; ++j) {
+    __m128d lo = _mm_setzero_pd();
+    double hi = 0;
+    for (int q = A.colStart[j]; q < A.colStart[j + 1]; ++q) {
+      const auto [k, s] = A.colBlocks[q];
+      __m256d r[3];
+      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
+      const double* xk = x + 3 * static_cast<long>(k);
+      const __m256d t = upperTransposed(r, _mm256_set1_pd(xk[0]), _mm256_set1_pd(xk[1]), _mm256_set1_pd(xk[2]));
+      lo = _mm_add_pd(lo, _mm256_castpd256_pd128(t));
+      hi += _mm_cvtsd_f64(_mm256_extractf128_pd(t, 1));
+    }
+    RowSum sum;
+    rowSumStart(sum, A.values + 9 * static_cast<long>(A.rowStart[j]), triple(x, j, A.n, three));
+    for (int s = A.rowStart[j] + 1; s < A.rowStart[j + 1]; ++s) {
+      __m256d r[3];
+      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
+      rowSumAdd(sum, r, triple(x, A.cols[s], A.n, three));
+    }
+    rowSumFinish(sum, keep, lo, hi);
+    _mm_storeu_pd(y + 3 * static_cast<long>(j), lo);
+    y[3 * static_cast<long>(j) + 2] = hi;
+  }
+}
 #endif
 
 RowsKernel rowsKernel() {
@@ -120,9 +290,33 @@ RowsKernel rowsKernel() {
 #endif
 }
 
+struct UpperKernels {
+  UpperKernel scatter, gather;
+};
+
+UpperKernels upperKernels() {
+#if defined(__x86_64__)
+  if (useAvx2()) return {upperScatterAvx2, upperGatherAvx2};
+#endif
+  return {upperScatterBaseline, upperGatherBaseline};
+}
+
 }  // namespace
 
 void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
+  if (upper()) {
+    static const UpperKernels k = upperKernels();
+    const UpperPattern A{rowStart_.data(), cols_.data(), values_.data(), colStart_.data(), colBlocks_.data(), n_};
+    const bool oneThread = tbb::this_task_arena::max_concurrency() == 1 ||
+                           tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) == 1;
+    if (n_ < 512 || oneThread) {
+      k.scatter(A, x.data(), y.data(), 0, n_);
+      return;
+    }
+    tbb::parallel_for(tbb::blocked_range<int>(0, n_, 256),
+                      [&](const tbb::blocked_range<int>& r) { k.gather(A, x.data(), y.data(), r.begin(), r.end()); });
+    return;
+  }
   const RowsKernel kernel = rowsKernel();
   auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1, n_); };
   if (n_ < 512) {
@@ -161,7 +355,10 @@ void BlockSparseMatrix::projectNodes(const std::vector<std::pair<int, Eigen::Mat
 Eigen::MatrixXd BlockSparseMatrix::toDense() const {
   Eigen::MatrixXd d = Eigen::MatrixXd::Zero(3 * n_, 3 * n_);
   for (int i = 0; i < n_; ++i)
-    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s) d.block<3, 3>(3 * i, 3 * cols_[s]) = block(s);
+    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s) {
+      d.block<3, 3>(3 * i, 3 * cols_[s]) = block(s);
+      if (upper() && cols_[s] != i) d.block<3, 3>(3 * cols_[s], 3 * i) = block(s).transpose();
+    }
   return d;
 }
 

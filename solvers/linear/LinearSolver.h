@@ -34,6 +34,9 @@ class LinearSolver : public Stateful {
  public:
   // Whether the ODE solver must assemble the matrix for this solver.
   virtual bool needsMatrix() const = 0;
+  // Whether the assembled matrix may come in upper storage (BlockSparseMatrix::Storage::Upper):
+  // solvers that only multiply by it and read its diagonal.
+  virtual bool takesUpperMatrix() const { return false; }
   // Solves A x = b. `x` holds the previous solution on entry (used by warm starts).
   virtual LinearSolveInfo solve(State& s, const LinearProblem& problem, const Eigen::VectorXd& b,
                                 Eigen::VectorXd& x) const = 0;

@@ -35,6 +35,7 @@ class CGLinearSolver : public Component, public LinearSolver {
       throw error("preconditioner", "needs the assembled matrix; remove it or set assembled=\"true\"");
   }
   bool needsMatrix() const override { return assembled_; }
+  bool takesUpperMatrix() const override { return true; }  // products and the diagonal (Jacobi)
   LinearSolveInfo solve(State&, const LinearProblem& p, const Eigen::VectorXd& b, Eigen::VectorXd& x) const override {
     return conjugateGradient(p, b, x, o_);
   }

@@ -94,6 +94,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
     if (linear_->needsMatrix()) {
       for (auto& sys : systems_) sys->prepareAssembly();
       if (joint_) prepareJoint();
+      else upper_ = linear_->takesUpperMatrix() && systems_.front()->prepareUpperAssembly();
     }
   }
 
@@ -133,6 +134,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
       if (linear_->needsMatrix()) {
         // A = kFact K + mFact M, constrained; K v read from kFact K before the mass joins it.
         BlockSparseMatrix& A = l.A[K(k)];
+        if (upper_ && !A.upper()) A = sys.upperPattern();
         sys.assembleStiffness(st, A, uScale, kFact != 0 ? kFact : 1.0);
         A.multiply(Eigen::Map<const Eigen::VectorXd>(s.v.data(), 3 * n), Eigen::Map<Eigen::VectorXd>(Kv[K(k)].data(), 3 * n));
         if (kFact != 0) Kv[K(k)] *= 1.0 / kFact;
@@ -270,6 +272,7 @@ class EulerImplicitSolver : public Component, public OdeSolver, public Stateful 
   // One system over several bodies or with couplings; with an assembled linear solver, its matrix
   // is the bodies' matrices side by side and the couplings' blocks (jointPattern_, bodySlots_).
   bool joint_ = false;
+  bool upper_ = false;  // one body whose matrix assembles in upper storage (MechanicalSystem::prepareUpperAssembly)
   BlockSparseMatrix jointPattern_;
   std::vector<int> firstNode_;               // each body's first node in the joint matrix
   std::vector<std::vector<int>> bodySlots_;  // body k's block slot -> joint slot

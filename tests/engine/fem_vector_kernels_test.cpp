@@ -245,6 +245,44 @@ TEST(VectorKernels, StiffnessBlocksOfARangeMatchTheEigenKernel) {
   EXPECT_LE((K.toDense() - ref).cwiseAbs().maxCoeff(), 1e-12 * ref.cwiseAbs().maxCoeff());
 }
 
+// The same elements assembled into upper storage: each stored block (i <= j) is the full
+// storage's block (i, j) to the bit; nothing is written below the diagonal.
+TEST(VectorKernels, StiffnessBlocksInUpperStorageAreTheFullOnes) {
+  const int count = 9, nodes = count + 3;
+  const int number[nodes] = {5, 11, 0, 7, 2, 9, 1, 10, 3, 8, 4, 6};  // node numbers out of element order
+  std::vector<fem::ElementRest> elements;
+  std::vector<Eigen::Matrix3d> R;
+  std::vector<std::pair<int, int>> pairs;
+  for (int e = 0; e < count; ++e) {
+    elements.push_back(fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(uniform(1e3, 1e5), 0.45)));
+    R.push_back(Eigen::AngleAxisd(uniform(-3, 3), Eigen::Vector3d::Random().normalized()).toRotationMatrix());
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) pairs.push_back({number[e + i], number[e + j]});
+  }
+  BlockSparseMatrix full, upper;
+  full.setPattern(nodes, pairs);
+  upper.setPattern(nodes, pairs, BlockSparseMatrix::Storage::Upper);
+  for (BlockSparseMatrix* K : {&full, &upper}) {
+    std::vector<std::array<int, 16>> slots(count);
+    for (int e = 0; e < count; ++e)
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) slots[e][4 * i + j] = K->slot(number[e + i], number[e + j]);
+    fem::addTetrahedraBlocks(elements, R.data(), slots.data(), 0, count, -0.3, K->values());
+  }
+  EXPECT_EQ(upper.values()[9 * upper.nonZeroBlocks()], 0.0);  // the padding after the last block
+  int compared = 0;
+  for (int i = 0; i < nodes; ++i)
+    for (int j = i; j < nodes; ++j)
+      if (const int s = full.slot(i, j); s >= 0) {
+        ASSERT_GE(upper.slot(i, j), 0);
+        EXPECT_TRUE(upper.block(upper.slot(i, j)) == full.block(s)) << i << " " << j;
+        ++compared;
+      }
+  EXPECT_EQ(compared, upper.nonZeroBlocks());
+  const Eigen::MatrixXd F = full.toDense();
+  EXPECT_LE((upper.toDense() - F).cwiseAbs().maxCoeff(), 1e-13 * F.cwiseAbs().maxCoeff());
+}
+
 TEST(VectorKernels, BlockProductMatchesTheDenseProduct) {
   for (int n : {1, 2, 7, 600}) {  // 600 rows: the parallel path
     std::vector<std::pair<int, int>> pairs;

@@ -10,6 +10,7 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <tbb/task_arena.h>
 #include <utility>
 #include <vector>
 
@@ -31,7 +32,8 @@ struct RandomSystem {
   std::vector<std::pair<int, int>> pairs;  // unique, i < j
 };
 
-RandomSystem randomSymmetric(int n, int perRow, double shift, unsigned seed) {
+RandomSystem randomSymmetric(int n, int perRow, double shift, unsigned seed,
+                             BlockSparseMatrix::Storage storage = BlockSparseMatrix::Storage::Full) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> pick(0, n - 1);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -46,7 +48,7 @@ RandomSystem randomSymmetric(int n, int perRow, double shift, unsigned seed) {
   // Give setPattern duplicates and both orders: it must cope.
   std::vector<std::pair<int, int>> given = s.pairs;
   for (size_t k = 0; k < s.pairs.size(); k += 3) given.push_back({s.pairs[k].second, s.pairs[k].first});
-  s.A.setPattern(n, given);
+  s.A.setPattern(n, given, storage);
   s.dense = MatrixXd::Zero(3 * n, 3 * n);
   for (auto [i, j] : s.pairs) {
     Eigen::Matrix3d B;
@@ -163,20 +165,23 @@ TEST(BlockSparseMatrix, PatternProductAndScale) {
 
 // The product reads four doubles per node triple and per block row: what lies beyond them (the
 // next node's first entry, the next row) must not reach the result. A chain of three nodes whose
-// last is not a number: the rows of the first node, which does not touch it, stay exact.
+// last is not a number: the rows of the first node, which does not touch it, stay exact. Both
+// storages (the pairs given in either order).
 TEST(BlockSparseMatrix, ANonFiniteNodeReachesOnlyTheRowsThatTouchIt) {
-  BlockSparseMatrix A;
-  A.setPattern(3, {{0, 1}, {1, 2}});
-  for (int s = 0; s < A.nonZeroBlocks(); ++s)
-    for (int k = 0; k < 9; ++k) A.block(s)(k / 3, k % 3) = 1 + s + 0.1 * k;
-  VectorXd x(9);
-  x << 1, 2, 3, 4, 5, 6, std::nan(""), 8, 9;
-  VectorXd y(9);
-  A.multiply(x, y);
-  const Eigen::MatrixXd D = A.toDense();
-  EXPECT_TRUE(y.head<3>().allFinite());
-  EXPECT_LT((y.head<3>() - D.topLeftCorner(3, 6) * x.head<6>()).norm(), 1e-13 * y.head<3>().norm());
-  EXPECT_FALSE(y.segment<3>(3).allFinite());  // node 1 couples to the NaN node
+  for (auto storage : {BlockSparseMatrix::Storage::Full, BlockSparseMatrix::Storage::Upper}) {
+    BlockSparseMatrix A;
+    A.setPattern(3, {{0, 1}, {2, 1}}, storage);
+    for (int s = 0; s < A.nonZeroBlocks(); ++s)
+      for (int k = 0; k < 9; ++k) A.block(s)(k / 3, k % 3) = 1 + s + 0.1 * k;
+    VectorXd x(9);
+    x << 1, 2, 3, 4, 5, 6, std::nan(""), 8, 9;
+    VectorXd y(9);
+    A.multiply(x, y);
+    const Eigen::MatrixXd D = A.toDense();
+    EXPECT_TRUE(y.head<3>().allFinite());
+    EXPECT_LT((y.head<3>() - D.topLeftCorner(3, 6) * x.head<6>()).norm(), 1e-13 * y.head<3>().norm());
+    EXPECT_FALSE(y.segment<3>(3).allFinite());  // node 1 couples to the NaN node
+  }
 }
 
 // constrainNodes: the rows and columns of the constrained nodes become identity rows/columns,
@@ -192,6 +197,57 @@ TEST(BlockSparseMatrix, ConstrainNodesGivesIdentityRowsAndColumns) {
     expected.block<3, 3>(3 * i, 3 * i).setIdentity();
   }
   EXPECT_EQ((s.A.toDense() - expected).norm(), 0.0);
+}
+
+// Upper storage: the blocks on and above the diagonal only (slot -1 below), the same matrix as
+// the full storage (toDense, exactly), and the product of the symmetric matrix to round-off. The
+// one-thread product (rows and transposed columns in one sweep) and the threaded one (each row
+// gathering its column) give the same result to the bit.
+TEST(BlockSparseMatrixUpper, PatternAndProductOfTheSymmetricMatrix) {
+  using Storage = BlockSparseMatrix::Storage;
+  for (int n : {40, 700}) {
+    RandomSystem s = randomSymmetric(n, 4, 1.0, 1 + n, Storage::Upper);
+    ASSERT_TRUE(s.A.upper());
+    EXPECT_EQ(s.A.nonZeroBlocks(), static_cast<int>(s.pairs.size()) + n);
+    for (int i = 0; i < n; ++i) {
+      EXPECT_EQ(s.A.diagonalSlot(i), s.A.rowStart()[i]);  // the diagonal leads its row
+      for (int j = 0; j < i; ++j) EXPECT_EQ(s.A.slot(i, j), -1);
+    }
+    for (auto [i, j] : s.pairs) EXPECT_GE(s.A.slot(i, j), 0);
+    EXPECT_EQ((s.A.toDense() - s.dense).norm(), 0.0);
+    const VectorXd x = randomVector(3 * n, 5);
+    VectorXd one(3 * n), two(3 * n);
+    {
+      tbb::task_arena arena(1);
+      arena.execute([&] { s.A.multiply(x, one); });
+    }
+    {
+      tbb::task_arena arena(2);
+      arena.execute([&] { s.A.multiply(x, two); });
+    }
+    EXPECT_LT((one - s.dense * x).norm(), 1e-13 * (s.dense * x).norm()) << "n = " << n;
+    EXPECT_EQ((one - two).cwiseAbs().maxCoeff(), 0.0) << "n = " << n;
+    // y is written, not added to.
+    VectorXd again = VectorXd::Constant(3 * n, 7.0);
+    s.A.multiply(x, again);
+    EXPECT_EQ((again - one).cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
+// constrainNodes and projectNodes on the upper storage give the matrix they give on the full one.
+TEST(BlockSparseMatrixUpper, ConstraintsAsOnTheFullStorage) {
+  using Storage = BlockSparseMatrix::Storage;
+  RandomSystem full = randomSymmetric(30, 4, 1.0, 77), up = randomSymmetric(30, 4, 1.0, 77, Storage::Upper);
+  ASSERT_EQ((full.A.toDense() - up.A.toDense()).norm(), 0.0);
+  const std::vector<int> fixed{0, 7, 8, 29};
+  full.A.constrainNodes(fixed);
+  up.A.constrainNodes(fixed);
+  EXPECT_EQ((full.A.toDense() - up.A.toDense()).norm(), 0.0);
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 2, 2).normalized();
+  const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - n * n.transpose();
+  full.A.projectNodes({{3, P}, {12, P}});
+  up.A.projectNodes({{3, P}, {12, P}});
+  EXPECT_LT((full.A.toDense() - up.A.toDense()).norm(), 1e-14 * full.A.toDense().norm());
 }
 
 // CG solves a random SPD system (600 unknowns) to 1e-10 relative residual (tolerance 1e-12, so
