@@ -48,12 +48,14 @@ class ForceField {
   virtual void addDForce(const State& s, const Eigen::Matrix3Xd& dx, Eigen::Matrix3Xd& df, double kFactor) const {}
   // Node pairs coupled by K (for the sparsity pattern).
   virtual void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const {}
-  // Called once the model's pattern is fixed (before stepping), to precompute value slots.
+  // Called once the model's pattern is fixed (before stepping), to precompute value slots; a field
+  // that assembles in upper storage is called again with the upper pattern (K.upper()) and keeps
+  // one table per storage, as both are in use.
   virtual void prepareAssembly(const BlockSparseMatrix& K) {}
   // K += kFactor * (the force field's K).
   virtual void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {}
   // Whether addStiffness also fills a matrix in upper storage (BlockSparseMatrix::Storage::Upper):
-  // its K is symmetric and it skips the blocks below the diagonal (slot -1).
+  // its K is symmetric and it skips the blocks below the diagonal (slot -1; addSymmetric does).
   virtual bool assemblesUpper() const { return false; }
   // Potential energy at x (0 when the field has none).
   virtual double potentialEnergy(const Eigen::Matrix3Xd& x) const { return 0.0; }

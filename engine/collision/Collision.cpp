@@ -856,8 +856,7 @@ void SurfaceCollisionModel::addStiffness(const State& s, BlockSparseMatrix& K, d
     if (!c.active || explicitPair(c)) continue;
     const Eigen::Matrix3d nn = -kFactor * c.k * c.n * c.n.transpose();
     for (int a = 0; a < c.count; ++a)
-      for (int b = 0; b < c.count; ++b)
-        if (const int slot = K.slot(c.nodes[a], c.nodes[b]); slot >= 0) K.block(slot) += c.w[a] * c.w[b] * nn;
+      for (int b = 0; b < c.count; ++b) K.addSymmetric(c.nodes[a], c.nodes[b], c.w[a] * c.w[b] * nn);
   }
 }
 

@@ -84,7 +84,7 @@ struct SpringsLive : ComponentStateOf<SpringsLive> {
 class MeshSpringForceField : public Component, public ForceField, public Stateful {
  public:
   using Component::Component;
-  bool assemblesUpper() const override { return true; }  // symmetric; skips the blocks not stored
+  bool assemblesUpper() const override { return true; }  // symmetric, written with addSymmetric
   MechanicalObject& mstate() const override { return *state_; }
   using Live = SpringsLive;
   std::unique_ptr<ComponentState> initialState() const override {
@@ -223,8 +223,8 @@ class MeshSpringForceField : public Component, public ForceField, public Statefu
       const Eigen::Matrix3d B = kFactor * J[i];
       K.block(K.diagonalSlot(s.a)) -= B;
       K.block(K.diagonalSlot(s.b)) -= B;
-      for (const int slot : {K.slot(s.a, s.b), K.slot(s.b, s.a)})
-        if (slot >= 0) K.block(slot) += B;
+      K.addSymmetric(s.a, s.b, B);
+      K.addSymmetric(s.b, s.a, B);
     }
   }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override {

@@ -2,6 +2,8 @@
 #include "core/Simd.h"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -55,6 +57,13 @@ int BlockSparseMatrix::slot(int i, int j) const {
   auto b = cols_.begin() + rowStart_[i], e = cols_.begin() + rowStart_[i + 1];
   auto it = std::lower_bound(b, e, j);
   return it != e && *it == j ? static_cast<int>(it - cols_.begin()) : -1;
+}
+
+void BlockSparseMatrix::addSymmetric(int i, int j, const Eigen::Matrix3d& B) {
+  if (upper() && j < i) return;
+  const int s = slot(i, j);
+  if (s < 0) throw std::logic_error("block (" + std::to_string(i) + ", " + std::to_string(j) + ") is not in the matrix's pattern");
+  block(s) += B;
 }
 
 void BlockSparseMatrix::setZero() { std::fill(values_.begin(), values_.end(), 0.0); }

@@ -30,6 +30,10 @@ class BlockSparseMatrix {
   int slot(int i, int j) const;
   int diagonalSlot(int i) const { return diag_[i]; }
 
+  // K_ij += B for a symmetric contribution, which also adds B^T at (j, i): in upper storage the
+  // block below the diagonal is skipped. A pair outside the pattern is a logic_error.
+  void addSymmetric(int i, int j, const Eigen::Matrix3d& B);
+
   void setZero();
   using Block = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
   // Block at `slot` (row-major 3x3).

@@ -10,6 +10,7 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 #include <utility>
 #include <vector>
@@ -222,6 +223,7 @@ TEST(BlockSparseMatrixUpper, PatternAndProductOfTheSymmetricMatrix) {
       arena.execute([&] { s.A.multiply(x, one); });
     }
     {
+      tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);  // also on a one-core machine
       tbb::task_arena arena(2);
       arena.execute([&] { s.A.multiply(x, two); });
     }
