@@ -101,7 +101,8 @@ struct UpperPattern {
   const std::pair<int, int>* colBlocks;
   int n;
 };
-using UpperKernel = void (*)(UpperPattern A, const double* x, double* y, int r0, int r1);  // A by value: a local copy that no store through y can alias
+// A by value: a local copy, which no store through y can alias (so its fields stay in registers).
+using UpperKernel = void (*)(UpperPattern A, const double* x, double* y, int r0, int r1);
 
 // B^T u, for the block at b (row-major).
 inline void transposedTimes(const double* b, const double* u, double (&t)[3]) {
@@ -193,6 +194,7 @@ __attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, c
     y[3 * i + 2] = _mm_cvtsd_f64(s22);
   }
 }
+
 // The upper-storage product with AVX2: block rows loaded as in multiplyRowsAvx2 (the fourth lane
 // cleared where it enters the transposed product). y_j is updated as two doubles and one, never as
 // four: a four-double store overlapping the next node's load would stall store forwarding.
