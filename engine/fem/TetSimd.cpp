@@ -34,20 +34,34 @@ inline void blocksGeneric(const double* R, const double* G, double la, double ma
     }
 }
 
-// Four doubles, one element per lane (GCC's vector extension: the operators compile to AVX in
-// the AVX2 kernels and are used nowhere else).
+// Four or eight doubles, one element per lane (GCC's vector extension: the operators compile to
+// AVX or AVX-512 in the kernels of that level and are used nowhere else).
 typedef double Lanes __attribute__((vector_size(32)));
+typedef double Lanes8 __attribute__((vector_size(64)));
 
 // The factor that normalises a vector of squared length v, lane by lane: 1 / sqrt(v), or 1 for a
 // zero vector, which stays zero (as Eigen's normalized(): a collapsed element gets a zero frame
 // and finite forces, and the health check names it). Arguments by reference: no vector crosses
-// a call boundary.
+// a call boundary. The lane versions take one vector square root and one division (the same
+// rounding as the scalar one); they are inlined into the kernels of their level, which are
+// flattened for that (an always_inline chain cannot reach a function of a higher level).
 inline void reciprocalRoot(const double& v, double& out) { out = v > 0.0 ? 1.0 / std::sqrt(v) : 1.0; }
-inline void reciprocalRoot(const Lanes& v, Lanes& out) {
-  Lanes root;
-  for (int l = 0; l < 4; ++l) root[l] = v[l] > 0.0 ? std::sqrt(v[l]) : 1.0;
-  out = 1.0 / root;  // one vector division
+#if defined(__x86_64__)
+__attribute__((target("avx2,fma"))) inline void reciprocalRoot(const Lanes& v, Lanes& out) {
+  __m256d w;
+  std::memcpy(&w, &v, sizeof w);
+  const __m256d one = _mm256_set1_pd(1.0);
+  w = _mm256_div_pd(one, _mm256_blendv_pd(one, _mm256_sqrt_pd(w), _mm256_cmp_pd(w, _mm256_setzero_pd(), _CMP_GT_OQ)));
+  std::memcpy(&out, &w, sizeof w);
 }
+__attribute__((target("avx512f,avx512vl,fma"))) inline void reciprocalRoot(const Lanes8& v, Lanes8& out) {
+  __m512d w;
+  std::memcpy(&w, &v, sizeof w);
+  const __m512d one = _mm512_set1_pd(1.0);
+  w = _mm512_div_pd(one, _mm512_mask_sqrt_pd(one, _mm512_cmp_pd_mask(w, _mm512_setzero_pd(), _CMP_GT_OQ), w));
+  std::memcpy(&out, &w, sizeof w);
+}
+#endif
 
 // The stress of the corotational ("large") tetrahedron in its frame, for one element (T = double)
 // or four (T = Lanes). p: node positions; X, G: rest positions in the element frame and shape-
@@ -152,10 +166,10 @@ void largeForcesGeneric(const double* x, const int* tets, int first, int count, 
 }
 
 #if defined(__x86_64__)
-// Groups of four elements starting at a multiple of four run in the lanes; the rest one by one.
-// The group of four elements starting at e (a multiple of four): their rest data from the lanes
-// and their nodes' positions, one element per lane.
-__attribute__((target("avx2,fma"), always_inline)) inline void loadGroup(const double* x, const int* tets, const double* lanes,
+// Groups of four (or eight) elements starting at a multiple of four (eight) run in the lanes; the
+// rest one by one. The group starting at e: its rest data from the lanes (kept in groups of four)
+// and its nodes' positions, one element per lane.
+__attribute__((target("avx2,fma"))) inline void loadGroup(const double* x, const int* tets, const double* lanes,
                                                                          int e, Lanes (&in)[kLaneFields], Lanes (&p)[4][3]) {
   const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
   for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
@@ -166,27 +180,71 @@ __attribute__((target("avx2,fma"), always_inline)) inline void loadGroup(const d
                       x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
 }
 
-__attribute__((target("avx2,fma"))) void largeForcesAvx2(const double* x, const int* tets, int first, int count,
-                                                         const ElementRest* rest, const double* lanes, double* R, double* f) {
+__attribute__((target("avx512f,avx512vl,fma"))) inline void loadGroup(const double* x, const int* tets,
+                                                                                    const double* lanes, int e,
+                                                                                    Lanes8 (&in)[kLaneFields], Lanes8 (&p)[4][3]) {
+  const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
+  for (int k = 0; k < kLaneFields; ++k) {
+    std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));
+    std::memcpy(reinterpret_cast<char*>(&in[k]) + sizeof(Lanes), group + kLaneFields * 4 + 4 * k, sizeof(Lanes));
+  }
+  const int* t = tets + 4 * e;
+  const auto at = [&](int l, int k, int r) { return x[3 * static_cast<long>(t[4 * l + k]) + r]; };
+  for (int k = 0; k < 4; ++k)
+    for (int r = 0; r < 3; ++r)
+      p[k][r] = Lanes8{at(0, k, r), at(1, k, r), at(2, k, r), at(3, k, r), at(4, k, r), at(5, k, r), at(6, k, r), at(7, k, r)};
+}
+
+// The W elements starting at e in the lanes of V: their frames into R, their forces added to f
+// (element by element, in order).
+template <class V, int W>
+__attribute__((always_inline)) inline void largeForcesGroup(const double* x, const int* tets, const double* lanes, int e, double* R,
+                                                            double* f) {
+  V in[kLaneFields], p[4][3], Rl[9], fl[4][3];
+  loadGroup(x, tets, lanes, e, in, p);
+  const int* t = tets + 4 * e;
+  largeForce(p, in, in + 12, in[24], in[25], in[26], Rl, fl);
+  for (int l = 0; l < W; ++l) {
+    double* Re = R + 9 * static_cast<long>(e + l);
+    for (int c = 0; c < 9; ++c) Re[c] = Rl[c][l];
+    for (int k = 0; k < 4; ++k)
+      for (int r = 0; r < 3; ++r) f[3 * static_cast<long>(t[4 * l + k]) + r] += fl[k][r][l];
+  }
+}
+
+__attribute__((target("avx2,fma"), flatten)) void largeForcesAvx2(const double* x, const int* tets, int first, int count,
+                                                                  const ElementRest* rest, const double* lanes, double* R, double* f) {
   const int end = first + count;
-  int e = first;
-  for (; e < end; ++e) {
+  for (int e = first; e < end;) {
     if (e % 4 == 0 && e + 4 <= end) {
-      Lanes in[kLaneFields], p[4][3], Rl[9], fl[4][3];
-      loadGroup(x, tets, lanes, e, in, p);
-      const int* t = tets + 4 * e;
-      largeForce(p, in, in + 12, in[24], in[25], in[26], Rl, fl);
-      for (int l = 0; l < 4; ++l) {
-        double* Re = R + 9 * static_cast<long>(e + l);
-        for (int c = 0; c < 9; ++c) Re[c] = Rl[c][l];
-        for (int k = 0; k < 4; ++k)
-          for (int r = 0; r < 3; ++r) f[3 * static_cast<long>(t[4 * l + k]) + r] += fl[k][r][l];
-      }
-      e += 3;
+      largeForcesGroup<Lanes, 4>(x, tets, lanes, e, R, f);
+      e += 4;
       continue;
     }
     const ElementRest& r = rest[e];
     largeForceOne(x, tets + 4 * e, r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu, R + 9 * e, f);
+    ++e;
+  }
+}
+
+// Eight lanes: the chain of square roots and divisions that builds each frame takes as long as
+// with four, for twice the elements.
+__attribute__((target("avx512f,avx512vl,fma"), flatten)) void largeForcesAvx512(const double* x, const int* tets, int first, int count,
+                                                                                const ElementRest* rest, const double* lanes,
+                                                                                double* R, double* f) {
+  const int end = first + count;
+  for (int e = first; e < end;) {
+    if (e % 8 == 0 && e + 8 <= end) {
+      largeForcesGroup<Lanes8, 8>(x, tets, lanes, e, R, f);
+      e += 8;
+    } else if (e % 4 == 0 && e + 4 <= end) {
+      largeForcesGroup<Lanes, 4>(x, tets, lanes, e, R, f);
+      e += 4;
+    } else {
+      const ElementRest& r = rest[e];
+      largeForceOne(x, tets + 4 * e, r.X.data(), r.G.data(), r.volume, r.lame.lambda, r.lame.mu, R + 9 * e, f);
+      ++e;
+    }
   }
 }
 
@@ -333,7 +391,7 @@ __attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int
   invertedGeneric(x, tets, e, end, rest, bad);
 }
 
-__attribute__((target("avx2,fma"))) void largeVonMisesAvx2(const double* x, const int* tets, int count, const ElementRest* rest,
+__attribute__((target("avx2,fma"), flatten)) void largeVonMisesAvx2(const double* x, const int* tets, int count, const ElementRest* rest,
                                                            const double* lanes, double* out) {
   int e = 0;
   for (; e + 4 <= count; e += 4) {
@@ -366,6 +424,7 @@ struct Kernels {
     if (useAvx512()) {
       version = "avx512";
       blocks = blocksRangeAvx512;
+      forces = largeForcesAvx512;
     }
 #endif
   }

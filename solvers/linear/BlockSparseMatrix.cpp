@@ -16,6 +16,7 @@ namespace viscera {
 void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int, int>>& pairs, Storage storage) {
   storage_ = storage;
   n_ = nBlocks;
+  held_ = false;
   std::vector<std::vector<int>> rows(n_);
   for (int i = 0; i < n_; ++i) rows[i].push_back(i);
   for (const auto& [i, j] : pairs) {
@@ -66,7 +67,10 @@ void BlockSparseMatrix::addSymmetric(int i, int j, const Eigen::Matrix3d& B) {
   block(s) += B;
 }
 
-void BlockSparseMatrix::setZero() { std::fill(values_.begin(), values_.end(), 0.0); }
+void BlockSparseMatrix::setZero() {
+  held_ = false;
+  std::fill(values_.begin(), values_.end(), 0.0);
+}
 
 void BlockSparseMatrix::scale(double a) {
   for (double& v : values_) v *= a;
@@ -95,6 +99,7 @@ void multiplyRowsBaseline(const int* rowStart, const int* cols, const double* va
 // the row's own sum: the same result to the bit.
 struct UpperPattern {
   const int* rowStart;
+  const int* rowEnd;  // where a row's blocks end for the product: rowStart + 1, or, for a held row, its diagonal + 1
   const int* cols;
   const double* values;
   const int* colStart;
@@ -102,7 +107,21 @@ struct UpperPattern {
   int n;
 };
 // A by value: a local copy, which no store through y can alias (so its fields stay in registers).
-using UpperKernel = void (*)(UpperPattern A, const double* x, double* y, int r0, int r1);
+// The scatter sweep also returns x . y in *dot when dot is not null (the gather ignores it).
+using UpperKernel = void (*)(UpperPattern A, const double* x, double* y, int r0, int r1, double* dot);
+// x . y over n node triples, summed as the scatter sweeps sum it (rowDot's order).
+using DotKernel = double (*)(const double* x, const double* y, int n);
+
+// x_i . y_i added to the sums of the triples' entries d.
+inline void rowDot(const double* xi, const double* yi, double (&d)[3]) {
+  for (int k = 0; k < 3; ++k) d[k] += xi[k] * yi[k];
+}
+
+double dotBaseline(const double* x, const double* y, int n) {
+  double d[3] = {0, 0, 0};
+  for (long i = 0; i < n; ++i) rowDot(x + 3 * i, y + 3 * i, d);
+  return d[0] + d[1] + d[2];
+}
 
 // B^T u, for the block at b (row-major).
 inline void transposedTimes(const double* b, const double* u, double (&t)[3]) {
@@ -112,7 +131,7 @@ inline void transposedTimes(const double* b, const double* u, double (&t)[3]) {
 // Row i's own sum: its blocks times the x_j, added to acc.
 inline void upperRowSum(const UpperPattern& A, const double* x, int i, double (&acc)[3]) {
   double r[3] = {0, 0, 0};
-  for (int s = A.rowStart[i]; s < A.rowStart[i + 1]; ++s) {
+  for (int s = A.rowStart[i]; s < A.rowEnd[i]; ++s) {
     const double* b = A.values + 9 * static_cast<long>(s);
     const double* u = x + 3 * static_cast<long>(A.cols[s]);
     for (int k = 0; k < 3; ++k) r[k] += b[3 * k] * u[0] + b[3 * k + 1] * u[1] + b[3 * k + 2] * u[2];
@@ -120,10 +139,11 @@ inline void upperRowSum(const UpperPattern& A, const double* x, int i, double (&
   for (int k = 0; k < 3; ++k) acc[k] += r[k];
 }
 
-void upperScatterBaseline(UpperPattern A, const double* x, double* y, int, int) {
+void upperScatterBaseline(UpperPattern A, const double* x, double* y, int, int, double* dot) {
+  double d[3] = {0, 0, 0};
   std::fill(y, y + 3 * static_cast<long>(A.n), 0.0);
   for (int i = 0; i < A.n; ++i) {
-    for (int s = A.rowStart[i] + 1; s < A.rowStart[i + 1]; ++s) {
+    for (int s = A.rowStart[i] + 1; s < A.rowEnd[i]; ++s) {
       double t[3];
       transposedTimes(A.values + 9 * static_cast<long>(s), x + 3 * static_cast<long>(i), t);
       for (int c = 0; c < 3; ++c) y[3 * static_cast<long>(A.cols[s]) + c] += t[c];
@@ -131,10 +151,12 @@ void upperScatterBaseline(UpperPattern A, const double* x, double* y, int, int) 
     double acc[3] = {y[3 * i], y[3 * i + 1], y[3 * i + 2]};
     upperRowSum(A, x, i, acc);
     for (int k = 0; k < 3; ++k) y[3 * i + k] = acc[k];
+    rowDot(x + 3 * static_cast<long>(i), y + 3 * static_cast<long>(i), d);
   }
+  if (dot) *dot = d[0] + d[1] + d[2];
 }
 
-void upperGatherBaseline(UpperPattern A, const double* x, double* y, int r0, int r1) {
+void upperGatherBaseline(UpperPattern A, const double* x, double* y, int r0, int r1, double*) {
   for (int j = r0; j < r1; ++j) {
     double acc[3] = {0, 0, 0};
     for (int q = A.colStart[j]; q < A.colStart[j + 1]; ++q) {
@@ -195,14 +217,19 @@ __attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, c
   }
 }
 
-// The upper-storage product with AVX2: block rows loaded as in multiplyRowsAvx2 (the fourth lane
-// cleared where it enters the transposed product). y_j is updated as two doubles and one, never as
-// four: a four-double store overlapping the next node's load would stall store forwarding.
-__attribute__((target("avx2,fma"), always_inline)) inline void upperLoad(const double* b, __m256d keep, __m256d (&r)[3]) {
-  for (int k = 0; k < 3; ++k) r[k] = _mm256_and_pd(_mm256_loadu_pd(b + 3 * k), keep);
+// The upper-storage product with AVX2: block rows loaded as in multiplyRowsAvx2. Their fourth
+// lanes are never cleared: in the row sums they are dropped at the end (rowSumFinish), and of the
+// transposed product only the first three lanes are used. y_j is updated as two doubles and one,
+// never as four: a four-double store overlapping the next node's load would stall store forwarding.
+__attribute__((target("avx2,fma"), always_inline)) inline void upperLoad(const double* b, __m256d (&r)[3]) {
+  for (int k = 0; k < 3; ++k) {
+    r[k] = _mm256_loadu_pd(b + 3 * k);
+    // Held in a register: folded into both products' instructions, each row would be loaded twice.
+    __asm__("" : "+x"(r[k]));
+  }
 }
 
-// B^T u from B's rows r and u's entries broadcast in u0, u1, u2.
+// B^T u from B's rows r and u's entries broadcast in u0, u1, u2 (the fourth lane is garbage).
 __attribute__((target("avx2,fma"), always_inline)) inline __m256d upperTransposed(const __m256d (&r)[3], __m256d u0, __m256d u1,
                                                                                 __m256d u2) {
   return _mm256_fmadd_pd(r[2], u2, _mm256_fmadd_pd(r[1], u1, _mm256_mul_pd(r[0], u0)));
@@ -234,36 +261,72 @@ __attribute__((target("avx2,fma"), always_inline)) inline void rowSumFinish(cons
   hi += _mm_cvtsd_f64(_mm_add_sd(_mm256_castpd256_pd128(h22), _mm256_extractf128_pd(h22, 1)));
 }
 
-// One sweep: each block (i, j) adds to row i's sum and, transposed, to y_j.
-__attribute__((target("avx2,fma"))) void upperScatterAvx2(UpperPattern A, const double* x, double* y, int, int) {
+// x_i . y_i added to (lo, hi), the sums of the triples' first two entries and of their third,
+// with fused multiply-adds.
+__attribute__((target("avx2,fma"), always_inline)) inline void rowDotAvx2(const double* xi, __m128d yLo, double yHi, __m128d& lo,
+                                                                          __m128d& hi) {
+  lo = _mm_fmadd_pd(_mm_loadu_pd(xi), yLo, lo);
+  hi = _mm_fmadd_sd(_mm_load_sd(xi + 2), _mm_set_sd(yHi), hi);
+}
+
+__attribute__((target("avx2,fma"))) double dotAvx2(const double* x, const double* y, int n) {
+  __m128d lo = _mm_setzero_pd(), hi = _mm_setzero_pd();
+  for (long i = 0; i < n; ++i) rowDotAvx2(x + 3 * i, _mm_loadu_pd(y + 3 * i), y[3 * i + 2], lo, hi);
+  return _mm_cvtsd_f64(lo) + _mm_cvtsd_f64(_mm_unpackhi_pd(lo, lo)) + _mm_cvtsd_f64(hi);
+}
+
+// The scatter sweep's sums of transposed products, four doubles per node (the fourth is not used):
+// one aligned load-add-store per block, where three-double triples take two and an extraction.
+struct alignas(32) Quad {
+  double v[4];
+};
+
+// Block (i, j) above the diagonal in the scatter sweep: B x_j (xj) into row i's sum, B^T x_i (x_i
+// broadcast in x0, x1, x2) added to t_j.
+__attribute__((target("avx2,fma"), always_inline)) inline void upperScatterBlock(RowSum& sum, const double* b, __m256d xj, __m256d x0,
+                                                                                 __m256d x1, __m256d x2, Quad& tj) {
+  __m256d r[3];
+  upperLoad(b, r);
+  rowSumAdd(sum, r, xj);
+  _mm256_store_pd(tj.v, _mm256_add_pd(_mm256_load_pd(tj.v), upperTransposed(r, x0, x1, x2)));
+}
+
+// One sweep: each block (i, j) adds to row i's sum and, transposed, to t_j; y_i is t_i plus row i's
+// sum. Columns ascend in a row, so only a row's last block can be in the last column, whose x_j is
+// loaded with a mask (nothing follows it); the others load four doubles without a test.
+__attribute__((target("avx2,fma"))) void upperScatterAvx2(UpperPattern A, const double* x, double* y, int, int, double* dot) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   const __m256d keep = _mm256_castsi256_pd(three);
-  std::fill(y, y + 3 * static_cast<long>(A.n), 0.0);
+  __m128d dotLo = _mm_setzero_pd(), dotHi = _mm_setzero_pd();
+  thread_local std::vector<Quad> sums;
+  sums.assign(static_cast<size_t>(A.n), Quad{});
+  Quad* t = sums.data();
   for (int i = 0; i < A.n; ++i) {
     // Broadcast once: y's stores could alias x as far as the compiler knows.
-    const __m256d x0 = _mm256_set1_pd(x[3 * static_cast<long>(i)]), x1 = _mm256_set1_pd(x[3 * static_cast<long>(i) + 1]),
-                  x2 = _mm256_set1_pd(x[3 * static_cast<long>(i) + 2]);
+    const double* xi = x + 3 * static_cast<long>(i);
+    const __m256d x0 = _mm256_set1_pd(xi[0]), x1 = _mm256_set1_pd(xi[1]), x2 = _mm256_set1_pd(xi[2]);
+    const int begin = A.rowStart[i], end = A.rowEnd[i];
+    const int open = end - 1 > begin && A.cols[end - 1] == A.n - 1 ? end - 1 : end;
     RowSum sum;
-    rowSumStart(sum, A.values + 9 * static_cast<long>(A.rowStart[i]), triple(x, i, A.n, three));
-    for (int s = A.rowStart[i] + 1; s < A.rowStart[i + 1]; ++s) {
-      __m256d r[3];
-      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
-      const int j = A.cols[s];
-      rowSumAdd(sum, r, triple(x, j, A.n, three));
-      const __m256d t = upperTransposed(r, x0, x1, x2);
-      double* yj = y + 3 * static_cast<long>(j);
-      _mm_storeu_pd(yj, _mm_add_pd(_mm_loadu_pd(yj), _mm256_castpd256_pd128(t)));
-      yj[2] += _mm_cvtsd_f64(_mm256_extractf128_pd(t, 1));
+    rowSumStart(sum, A.values + 9 * static_cast<long>(begin), triple(x, i, A.n, three));
+    for (int s = begin + 1; s < open; ++s) {
+      const long j = A.cols[s];
+      upperScatterBlock(sum, A.values + 9 * static_cast<long>(s), _mm256_loadu_pd(x + 3 * j), x0, x1, x2, t[j]);
     }
-    __m128d lo = _mm_loadu_pd(y + 3 * static_cast<long>(i));
-    double hi = y[3 * static_cast<long>(i) + 2];
+    if (open < end)
+      upperScatterBlock(sum, A.values + 9 * static_cast<long>(open), _mm256_maskload_pd(x + 3 * static_cast<long>(A.n - 1), three), x0,
+                        x1, x2, t[A.n - 1]);
+    __m128d lo = _mm_load_pd(t[i].v);
+    double hi = t[i].v[2];
     rowSumFinish(sum, keep, lo, hi);
     _mm_storeu_pd(y + 3 * static_cast<long>(i), lo);
     y[3 * static_cast<long>(i) + 2] = hi;
+    rowDotAvx2(xi, lo, hi, dotLo, dotHi);
   }
+  if (dot) *dot = _mm_cvtsd_f64(dotLo) + _mm_cvtsd_f64(_mm_unpackhi_pd(dotLo, dotLo)) + _mm_cvtsd_f64(dotHi);
 }
 
-__attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const double* x, double* y, int r0, int r1) {
+__attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const double* x, double* y, int r0, int r1, double*) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
   const __m256d keep = _mm256_castsi256_pd(three);
   for (int j = r0; j < r1; ++j) {
@@ -272,7 +335,7 @@ __attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const d
     for (int q = A.colStart[j]; q < A.colStart[j + 1]; ++q) {
       const auto [k, s] = A.colBlocks[q];
       __m256d r[3];
-      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
+      upperLoad(A.values + 9 * static_cast<long>(s), r);
       const double* xk = x + 3 * static_cast<long>(k);
       const __m256d t = upperTransposed(r, _mm256_set1_pd(xk[0]), _mm256_set1_pd(xk[1]), _mm256_set1_pd(xk[2]));
       lo = _mm_add_pd(lo, _mm256_castpd256_pd128(t));
@@ -280,9 +343,9 @@ __attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const d
     }
     RowSum sum;
     rowSumStart(sum, A.values + 9 * static_cast<long>(A.rowStart[j]), triple(x, j, A.n, three));
-    for (int s = A.rowStart[j] + 1; s < A.rowStart[j + 1]; ++s) {
+    for (int s = A.rowStart[j] + 1; s < A.rowEnd[j]; ++s) {
       __m256d r[3];
-      upperLoad(A.values + 9 * static_cast<long>(s), keep, r);
+      upperLoad(A.values + 9 * static_cast<long>(s), r);
       rowSumAdd(sum, r, triple(x, A.cols[s], A.n, three));
     }
     rowSumFinish(sum, keep, lo, hi);
@@ -290,6 +353,7 @@ __attribute__((target("avx2,fma"))) void upperGatherAvx2(UpperPattern A, const d
     y[3 * static_cast<long>(j) + 2] = hi;
   }
 }
+
 #endif
 
 RowsKernel rowsKernel() {
@@ -303,39 +367,40 @@ RowsKernel rowsKernel() {
 
 struct UpperKernels {
   UpperKernel scatter, gather;
+  DotKernel dot;
 };
 
 UpperKernels upperKernels() {
 #if defined(__x86_64__)
-  if (useAvx2()) return {upperScatterAvx2, upperGatherAvx2};
+  if (useAvx2()) return {upperScatterAvx2, upperGatherAvx2, dotAvx2};
 #endif
-  return {upperScatterBaseline, upperGatherBaseline};
+  return {upperScatterBaseline, upperGatherBaseline, dotBaseline};
 }
 
 }  // namespace
 
-void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
+void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y, double* xDotY) const {
+  static const UpperKernels k = upperKernels();
   if (upper()) {
-    static const UpperKernels k = upperKernels();
-    const UpperPattern A{rowStart_.data(), cols_.data(), values_.data(), colStart_.data(), colBlocks_.data(), n_};
+    const UpperPattern A{rowStart_.data(), held_ ? rowEnd_.data() : rowStart_.data() + 1, cols_.data(), values_.data(), colStart_.data(),
+                         colBlocks_.data(), n_};
     const bool oneThread = tbb::this_task_arena::max_concurrency() == 1 ||
                            tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) == 1;
     if (n_ < 512 || oneThread) {
-      k.scatter(A, x.data(), y.data(), 0, n_);
+      k.scatter(A, x.data(), y.data(), 0, n_, xDotY);
       return;
     }
     tbb::parallel_for(tbb::blocked_range<int>(0, n_, 256),
-                      [&](const tbb::blocked_range<int>& r) { k.gather(A, x.data(), y.data(), r.begin(), r.end()); });
-    return;
+                      [&](const tbb::blocked_range<int>& r) { k.gather(A, x.data(), y.data(), r.begin(), r.end(), nullptr); });
+  } else {
+    const RowsKernel kernel = rowsKernel();
+    auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1, n_); };
+    if (n_ < 512) rowsRange(0, n_);
+    else
+      tbb::parallel_for(tbb::blocked_range<int>(0, n_, 256),
+                        [&](const tbb::blocked_range<int>& r) { rowsRange(r.begin(), r.end()); });
   }
-  const RowsKernel kernel = rowsKernel();
-  auto rowsRange = [&](int r0, int r1) { kernel(rowStart_.data(), cols_.data(), values_.data(), x.data(), y.data(), r0, r1, n_); };
-  if (n_ < 512) {
-    rowsRange(0, n_);
-    return;
-  }
-  tbb::parallel_for(tbb::blocked_range<int>(0, n_, 256),
-                    [&](const tbb::blocked_range<int>& r) { rowsRange(r.begin(), r.end()); });
+  if (xDotY) *xDotY = k.dot(x.data(), y.data(), n_);
 }
 
 void BlockSparseMatrix::constrainNodes(const std::vector<int>& nodes) {
@@ -345,6 +410,13 @@ void BlockSparseMatrix::constrainNodes(const std::vector<int>& nodes) {
     for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
       if (fixed[i] || fixed[cols_[s]]) block(s).setZero();
   for (int i : nodes) block(diag_[i]).setIdentity();
+  if (upper()) {
+    // A held row is its diagonal now: the product skips its other blocks, all zero, until the
+    // values are written again. (Its column's blocks in other rows are zero too, but multiplied.)
+    rowEnd_.assign(rowStart_.begin() + 1, rowStart_.end());
+    for (int i : nodes) rowEnd_[i] = diag_[i] + 1;
+    held_ = true;
+  }
 }
 
 void BlockSparseMatrix::projectNodes(const std::vector<std::pair<int, Eigen::Matrix3d>>& projectors) {

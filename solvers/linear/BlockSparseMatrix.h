@@ -37,20 +37,29 @@ class BlockSparseMatrix {
   void setZero();
   using Block = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
   // Block at `slot` (row-major 3x3).
-  Eigen::Map<Block> block(int s) { return Eigen::Map<Block>(values_.data() + 9 * s); }
+  Eigen::Map<Block> block(int s) {
+    held_ = false;
+    return Eigen::Map<Block>(values_.data() + 9 * s);
+  }
   Eigen::Map<const Block> block(int s) const { return Eigen::Map<const Block>(values_.data() + 9 * s); }
-  double* values() { return values_.data(); }
+  double* values() {
+    held_ = false;
+    return values_.data();
+  }
   const double* values() const { return values_.data(); }
   const std::vector<int>& rowStart() const { return rowStart_; }  // #blockRows + 1
   const std::vector<int>& cols() const { return cols_; }          // #nonZeroBlocks
 
   // y = A x (x, y of size 3 * blockRows), in parallel over block rows. Upper storage gives the
   // same result, to the bit, on one thread (each block's row and column in one pass) and on several
-  // (each row gathers its column's blocks): the same operations in the same order.
-  void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const;
+  // (each row gathers its column's blocks): the same operations in the same order. With xDotY,
+  // also x . y (on one thread, upper storage: in the same sweep), the same to the bit either way.
+  void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y, double* xDotY = nullptr) const;
   // A = a * A (values only).
   void scale(double a);
   // Replaces block rows and columns of `nodes` by identity rows/columns (projective constraints).
+  // In upper storage the product then skips the held rows' other blocks, until values are written
+  // again (setZero, block(), values()).
   void constrainNodes(const std::vector<int>& nodes);
   // For nodes whose motion is projected by P (partly held): block (i, j) becomes P_i A_ij P_j and
   // each such diagonal block gains I - P_i, so that the held directions solve to zero.
@@ -67,6 +76,9 @@ class BlockSparseMatrix {
   std::vector<int> colStart_;
   std::vector<std::pair<int, int>> colBlocks_;
   std::vector<double> values_;
+  // After constrainNodes in upper storage: where each row's blocks end for the product.
+  std::vector<int> rowEnd_;
+  bool held_ = false;
 };
 
 }  // namespace viscera

@@ -46,8 +46,13 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
     }
     if (it == 1) p = jacobi ? z : r;
     else p = (jacobi ? z : r) + (rho / rhoPrev) * p;
-    problem.apply(p, q);
-    const double den = p.dot(q);
+    double den;
+    if (problem.applyDot) {
+      den = problem.applyDot(p, q);
+    } else {
+      problem.apply(p, q);
+      den = p.dot(q);
+    }
     if (!std::isfinite(den)) {
       info.ok = false;
       info.message = "conjugate gradient broke down (non-finite p^T A p)";

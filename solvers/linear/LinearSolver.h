@@ -17,6 +17,8 @@ struct LinearProblem {
   const BlockSparseMatrix* matrix = nullptr;
   // q = A p with constraints applied; always available.
   std::function<void(const Eigen::VectorXd& p, Eigen::VectorXd& q)> apply;
+  // q = A p returning p . q, where the product can give it in the same pass (else empty).
+  std::function<double(const Eigen::VectorXd& p, Eigen::VectorXd& q)> applyDot;
   // Diagonal of A, for Jacobi preconditioning (empty if unknown).
   Eigen::VectorXd diagonal;
 };

@@ -357,6 +357,12 @@ void useAssembled(LinearProblem& problem, const BlockSparseMatrix& A) {
     q.resize(p.size());
     A.multiply(p, q);
   };
+  problem.applyDot = [&A](const Eigen::VectorXd& p, Eigen::VectorXd& q) {
+    q.resize(p.size());
+    double pq = 0;
+    A.multiply(p, q, &pq);
+    return pq;
+  };
   const int n = A.blockRows();
   problem.diagonal.resize(3 * n);
   for (int i = 0; i < n; ++i) problem.diagonal.segment<3>(3 * i) = A.block(A.diagonalSlot(i)).diagonal();

@@ -63,10 +63,11 @@ TEST(VectorKernels, LargeForceMatchesTheEigenKernel) {
   }
 }
 
-// Elements 0..10 of a chain sharing nodes (e uses nodes e .. e + 3): two groups of four run in the
-// lanes, the rest one by one; started at element 1, elements 1..3 and 8..10 run one by one.
+// Elements 0..14 of a chain sharing nodes (e uses nodes e .. e + 3). From element 0: 0..7 in
+// eight lanes (AVX-512) or two groups of four, 8..11 in four, 12..14 one by one; from element 1:
+// 1..3 and 12..14 one by one, 4..7 and 8..11 in four lanes.
 TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
-  const int count = 11, nodes = count + 3;
+  const int count = 15, nodes = count + 3;
   Eigen::Matrix3Xd rest(3, nodes);
   for (int i = 0; i < nodes; ++i) rest.col(i) = Eigen::Vector3d(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
   Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
@@ -169,19 +170,20 @@ TEST(VectorKernels, TheVectorVersionsRunWhereTheCpuHasThem) {
 // Eigen kernel, so that the health check can name it.
 TEST(VectorKernels, ACollapsedElementHasFiniteForces) {
   const fem::ElementRest e = fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(1e3, 0.3));
-  const std::vector<fem::ElementRest> rest(8, e);
+  const int count = 13;  // eight lanes or two groups of four, a group of four, one alone
+  const std::vector<fem::ElementRest> rest(count, e);
   const std::vector<double> lanes = fem::largeTetrahedraLanes(rest);
-  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, 8);
-  for (int k = 0; k < 8; ++k) tets.col(k) << 0, 1, 2, 3;
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
+  for (int k = 0; k < count; ++k) tets.col(k) << 0, 1, 2, 3;
   const Eigen::Matrix3Xd x = Eigen::Matrix3Xd::Ones(3, 4);
   Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 4);
-  std::vector<Eigen::Matrix3d> R(8);
-  fem::addLargeTetrahedraForces(x.data(), tets.data(), 0, 8, rest, lanes, R.data(), f.data());  // lanes and one by one
+  std::vector<Eigen::Matrix3d> R(count);
+  fem::addLargeTetrahedraForces(x.data(), tets.data(), 0, count, rest, lanes, R.data(), f.data());
   Eigen::Matrix3d Rref;
   fem::Mat34 xe = fem::Mat34::Ones();
   const fem::Mat34 fref = fem::elementForce(fem::Method::Large, e, xe, Rref);
   EXPECT_TRUE(f.allFinite());
-  EXPECT_LE((f - 8.0 * fref).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, fref.cwiseAbs().maxCoeff()));
+  EXPECT_LE((f - count * fref).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, fref.cwiseAbs().maxCoeff()));
   for (const auto& r : R) EXPECT_EQ(r, Rref);
 }
 
