@@ -13,8 +13,15 @@ namespace viscera::fem {
 
 namespace {
 
-// Fields per element in largeTetrahedraLanes: X (12), G (12), volume, lambda, mu, unused.
+// Fields per element in largeTetrahedraLanes: X (12), G (12), volume, lambda, mu, unused; and
+// elements per group there (field k of a group's elements is contiguous).
 constexpr int kLaneFields = 28;
+constexpr int kLaneGroup = 8;
+
+// Field 0 of element e in the lanes; field k follows at k * kLaneGroup.
+inline const double* laneData(const double* lanes, int e) {
+  return lanes + kLaneFields * kLaneGroup * static_cast<long>(e / kLaneGroup) + e % kLaneGroup;
+}
 
 using BlocksKernel = void (*)(const ElementRest*, const double*, const int*, int, int, double, double*);
 
@@ -171,8 +178,8 @@ void largeForcesGeneric(const double* x, const int* tets, int first, int count, 
 // and its nodes' positions, one element per lane.
 __attribute__((target("avx2,fma"))) inline void loadGroup(const double* x, const int* tets, const double* lanes,
                                                                          int e, Lanes (&in)[kLaneFields], Lanes (&p)[4][3]) {
-  const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
-  for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));  // unaligned
+  const double* group = laneData(lanes, e);
+  for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + kLaneGroup * k, sizeof(Lanes));  // unaligned
   const int* t = tets + 4 * e;
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r)
@@ -183,10 +190,11 @@ __attribute__((target("avx2,fma"))) inline void loadGroup(const double* x, const
 __attribute__((target("avx512f,avx512vl,fma"))) inline void loadGroup(const double* x, const int* tets,
                                                                                     const double* lanes, int e,
                                                                                     Lanes8 (&in)[kLaneFields], Lanes8 (&p)[4][3]) {
-  const double* group = lanes + kLaneFields * 4 * static_cast<long>(e / 4);
+  // Field by field through a register (a copy of the group as one block became a slow string move).
+  const double* group = laneData(lanes, e);
   for (int k = 0; k < kLaneFields; ++k) {
-    std::memcpy(&in[k], group + 4 * k, sizeof(Lanes));
-    std::memcpy(reinterpret_cast<char*>(&in[k]) + sizeof(Lanes), group + kLaneFields * 4 + 4 * k, sizeof(Lanes));
+    const __m512d v = _mm512_loadu_pd(group + kLaneGroup * k);
+    std::memcpy(&in[k], &v, sizeof v);
   }
   const int* t = tets + 4 * e;
   const auto at = [&](int l, int k, int r) { return x[3 * static_cast<long>(t[4 * l + k]) + r]; };
@@ -299,25 +307,36 @@ __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest
 
 // The same blocks with AVX-512: eight of a block's nine entries (by columns) in one vector, so
 // that each block is two fused multiply-adds and one load-add-store (a third less time than
-// blocksAvx2 on the gel phantom); the ninth entry as there. The same operations in the same order
-// as blocksAvx2, so the same rounding.
+// blocksAvx2 on the gel phantom); the ninth entry as there. h = R^T G is formed in the lanes' own
+// patterns from R's entries (h written as scalars and read back as a vector waited on the stores:
+// a quarter of this kernel's time), with the multiply-adds of blocksAvx2 in their order, so the
+// same rounding. The loops over the node pairs are unrolled: all vectors stay in registers.
 __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void blocksAvx512(const double* R, const double* G, double la,
                                                                                        double ma, double* values, const int* slots) {
-  double h[4][3];  // h = R^T G
-  for (int k = 0; k < 4; ++k)
-    for (int r = 0; r < 3; ++r) h[k][r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
-  // Lane p of a block holds entry (r, c) = (p % 3, p / 3): P = h by rows, S = h by columns.
-  const __m512i rowOf = _mm512_set_epi64(1, 0, 2, 1, 0, 2, 1, 0), colOf = _mm512_set_epi64(2, 2, 1, 1, 1, 0, 0, 0);
+  // Lane p of a block holds entry (r, c) = (p % 3, p / 3): P = h by rows, S = h by columns, so
+  // P_k = sum_m R(p % 3, m) g_km and S_k = sum_m R(p / 3, m) g_km, R by rows (index 8: R(2, 2)).
+  const __m512d r07 = _mm512_loadu_pd(R), r8 = _mm512_set1_pd(R[8]);
+  const __m512d byRow[3] = {_mm512_permutex2var_pd(r07, _mm512_set_epi64(3, 0, 6, 3, 0, 6, 3, 0), r8),
+                            _mm512_permutex2var_pd(r07, _mm512_set_epi64(4, 1, 7, 4, 1, 7, 4, 1), r8),
+                            _mm512_permutex2var_pd(r07, _mm512_set_epi64(5, 2, 8, 5, 2, 8, 5, 2), r8)};
+  const __m512d byCol[3] = {_mm512_permutex2var_pd(r07, _mm512_set_epi64(6, 6, 3, 3, 3, 0, 0, 0), r8),
+                            _mm512_permutex2var_pd(r07, _mm512_set_epi64(7, 7, 4, 4, 4, 1, 1, 1), r8),
+                            _mm512_permutex2var_pd(r07, _mm512_set_epi64(8, 8, 5, 5, 5, 2, 2, 2), r8)};
   __m512d S[4], laP[4], maP[4];
+  double h2[4];  // h's third entries, for the ninth entry of each block
   for (int k = 0; k < 4; ++k) {
-    const __m512d v = _mm512_maskz_loadu_pd(0x7, h[k]);
-    const __m512d P = _mm512_maskz_permutexvar_pd(0xff, rowOf, v);
-    S[k] = _mm512_maskz_permutexvar_pd(0xff, colOf, v);
+    const double* g = G + 3 * k;
+    const __m512d g0 = _mm512_set1_pd(g[0]), g1 = _mm512_set1_pd(g[1]), g2 = _mm512_set1_pd(g[2]);
+    const __m512d P = _mm512_fmadd_pd(byRow[2], g2, _mm512_fmadd_pd(byRow[1], g1, _mm512_mul_pd(byRow[0], g0)));
+    S[k] = _mm512_fmadd_pd(byCol[2], g2, _mm512_fmadd_pd(byCol[1], g1, _mm512_mul_pd(byCol[0], g0)));
+    h2[k] = std::fma(R[8], g[2], std::fma(R[7], g[1], R[6] * g[0]));
     laP[k] = _mm512_mul_pd(_mm512_set1_pd(la), P);
     maP[k] = _mm512_mul_pd(_mm512_set1_pd(ma), P);
   }
   const double lm = la + ma;
+#pragma GCC unroll 4
   for (int i = 0; i < 4; ++i)
+#pragma GCC unroll 4
     for (int j = 0; j < 4; ++j) {
       if (slots[4 * j + i] < 0) continue;
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
@@ -325,7 +344,7 @@ __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void block
       const __m512d v = _mm512_fmadd_pd(laP[i], S[j], _mm512_fmadd_pd(maP[j], S[i], diag));
       double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
       _mm512_storeu_pd(k, _mm512_add_pd(_mm512_loadu_pd(k), v));
-      k[8] += lm * h[i][2] * h[j][2] + d;
+      k[8] += lm * h2[i] * h2[j] + d;
     }
 }
 
@@ -448,18 +467,18 @@ void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector
 }
 
 std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest) {
-  const size_t groups = (rest.size() + 3) / 4;
-  std::vector<double> lanes(kLaneFields * 4 * groups, 0.0);
+  const size_t groups = (rest.size() + kLaneGroup - 1) / kLaneGroup;
+  std::vector<double> lanes(kLaneFields * kLaneGroup * groups, 0.0);
   for (size_t e = 0; e < rest.size(); ++e) {
-    double* g = lanes.data() + kLaneFields * 4 * (e / 4) + e % 4;
+    double* g = lanes.data() + (laneData(lanes.data(), static_cast<int>(e)) - lanes.data());
     const ElementRest& r = rest[e];
     for (int k = 0; k < 12; ++k) {
-      g[4 * k] = r.X.data()[k];
-      g[4 * (12 + k)] = r.G.data()[k];
+      g[kLaneGroup * k] = r.X.data()[k];
+      g[kLaneGroup * (12 + k)] = r.G.data()[k];
     }
-    g[4 * 24] = r.volume;
-    g[4 * 25] = r.lame.lambda;
-    g[4 * 26] = r.lame.mu;
+    g[kLaneGroup * 24] = r.volume;
+    g[kLaneGroup * 25] = r.lame.lambda;
+    g[kLaneGroup * 26] = r.lame.mu;
   }
   return lanes;
 }

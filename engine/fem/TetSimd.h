@@ -22,12 +22,12 @@ namespace viscera::fem {
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
                          int first, int count, double kFactor, double* values);
 
-// The rest data of consecutive elements in groups of four, one element per lane (structure of
+// The rest data of consecutive elements in groups of eight, one element per lane (structure of
 // arrays), for addLargeTetrahedraForces: part of the model, built once.
 std::vector<double> largeTetrahedraLanes(const std::vector<ElementRest>& rest);
 // The corotational ("large") element force of SOFA's edge frame (fem::frameLarge,
-// fem::elementForce) of elements [first, first + count) in one pass, four at a time in the vector
-// version: reads each element's nodes (tets: 4 per element) from positions x (3 x n,
+// fem::elementForce) of elements [first, first + count) in one pass, four or eight at a time in the
+// vector versions: reads each element's nodes (tets: 4 per element) from positions x (3 x n,
 // column-major), writes its frame to R[e] and adds its nodal forces to f (3 x n).
 void addLargeTetrahedraForces(const double* x, const int* tets, int first, int count, const std::vector<ElementRest>& rest,
                               const std::vector<double>& lanes, Eigen::Matrix3d* R, double* f);
@@ -42,7 +42,7 @@ void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector
 // sign), or is degenerate: the health check after each step, four elements at a time.
 std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);
 
-// Which version the kernels run: "avx512" (the stiffness blocks; the others AVX2), "avx2" or
+// Which version the kernels run: "avx512" (the stiffness blocks and forces; the others AVX2), "avx2" or
 // "generic".
 const char* tetrahedronKernelsVersion();
 
