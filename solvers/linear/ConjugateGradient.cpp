@@ -3,9 +3,87 @@
 #include <memory>
 #include <vector>
 
+#include "core/Simd.h"
 #include "solvers/linear/LinearSolver.h"
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 namespace viscera {
+
+namespace {
+
+// The iteration's vector passes, fused: x += alpha p and r -= alpha q in one pass that also
+// returns the new r . r (the next iteration's residual), and p = r + beta p. Four partial sums of
+// r . r, lane by lane, added at the end.
+using UpdateKernel = double (*)(double alpha, const double* p, const double* q, double* x, double* r, long n);
+using DirectionKernel = void (*)(double beta, const double* r, double* p, long n);
+
+double updateGeneric(double alpha, const double* p, const double* q, double* x, double* r, long n) {
+  double s[4] = {0, 0, 0, 0};
+  long i = 0;
+  for (; i + 4 <= n; i += 4)
+    for (int k = 0; k < 4; ++k) {
+      x[i + k] += alpha * p[i + k];
+      r[i + k] -= alpha * q[i + k];
+      s[k] += r[i + k] * r[i + k];
+    }
+  for (; i < n; ++i) {
+    x[i] += alpha * p[i];
+    r[i] -= alpha * q[i];
+    s[i % 4] += r[i] * r[i];
+  }
+  return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
+void directionGeneric(double beta, const double* r, double* p, long n) {
+  for (long i = 0; i < n; ++i) p[i] = r[i] + beta * p[i];
+}
+
+#if defined(__x86_64__)
+__attribute__((target("avx2,fma"))) double updateAvx2(double alpha, const double* p, const double* q, double* x, double* r, long n) {
+  const __m256d a = _mm256_set1_pd(alpha);
+  __m256d s = _mm256_setzero_pd();
+  long i = 0;
+  for (; i + 4 <= n; i += 4) {
+    _mm256_storeu_pd(x + i, _mm256_fmadd_pd(a, _mm256_loadu_pd(p + i), _mm256_loadu_pd(x + i)));
+    const __m256d ri = _mm256_fnmadd_pd(a, _mm256_loadu_pd(q + i), _mm256_loadu_pd(r + i));
+    _mm256_storeu_pd(r + i, ri);
+    s = _mm256_fmadd_pd(ri, ri, s);
+  }
+  double lanes[4];
+  _mm256_storeu_pd(lanes, s);
+  for (; i < n; ++i) {
+    x[i] = std::fma(alpha, p[i], x[i]);
+    r[i] = std::fma(-alpha, q[i], r[i]);
+    lanes[i % 4] = std::fma(r[i], r[i], lanes[i % 4]);
+  }
+  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
+
+__attribute__((target("avx2,fma"))) void directionAvx2(double beta, const double* r, double* p, long n) {
+  const __m256d b = _mm256_set1_pd(beta);
+  long i = 0;
+  for (; i + 4 <= n; i += 4) _mm256_storeu_pd(p + i, _mm256_fmadd_pd(b, _mm256_loadu_pd(p + i), _mm256_loadu_pd(r + i)));
+  for (; i < n; ++i) p[i] = std::fma(beta, p[i], r[i]);
+}
+#endif
+
+struct CgKernels {
+  UpdateKernel update = updateGeneric;
+  DirectionKernel direction = directionGeneric;
+  CgKernels() {
+#if defined(__x86_64__)
+    if (useAvx2()) {
+      update = updateAvx2;
+      direction = directionAvx2;
+    }
+#endif
+  }
+};
+
+}  // namespace
 
 LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                                   const CgOptions& o) {
@@ -32,10 +110,11 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
   const bool jacobi = o.preconditioner == CgOptions::Preconditioner::Jacobi && problem.diagonal.size() == n;
   Eigen::VectorXd invDiag;
   if (jacobi) invDiag = problem.diagonal.unaryExpr([](double d) { return d != 0.0 ? 1.0 / d : 1.0; });
+  static const CgKernels kernels;
   double rho = 0, rhoPrev = 0;
+  double rr = r.squaredNorm();  // then from each iteration's update of r
   for (int it = 1; it <= o.maxIterations; ++it) {
-    // One pass over r gives both the residual and, unpreconditioned, rho (norm() is this root).
-    const double rr = r.squaredNorm();
+    // The residual and, unpreconditioned, rho.
     info.relResidual = std::sqrt(rr) / normb;
     if (info.relResidual <= o.tolerance) break;
     if (jacobi) {
@@ -45,7 +124,7 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
       rho = rr;
     }
     if (it == 1) p = jacobi ? z : r;
-    else p = (jacobi ? z : r) + (rho / rhoPrev) * p;
+    else kernels.direction(rho / rhoPrev, jacobi ? z.data() : r.data(), p.data(), n);
     double den;
     if (problem.applyDot) {
       den = problem.applyDot(p, q);
@@ -60,8 +139,7 @@ LinearSolveInfo conjugateGradient(const LinearProblem& problem, const Eigen::Vec
     }
     if (std::abs(den) <= o.threshold || den == 0.0) break;
     const double alpha = rho / den;
-    x.noalias() += alpha * p;
-    r.noalias() -= alpha * q;
+    rr = kernels.update(alpha, p.data(), q.data(), x.data(), r.data(), n);
     rhoPrev = rho;
     info.iterations = it;
   }
