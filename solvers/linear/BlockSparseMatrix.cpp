@@ -17,6 +17,9 @@ void BlockSparseMatrix::setPattern(int nBlocks, const std::vector<std::pair<int,
   storage_ = storage;
   n_ = nBlocks;
   held_ = false;
+  heldNodes_.clear();
+  heldSlots_.clear();
+  rowEnd_.clear();
   std::vector<std::vector<int>> rows(n_);
   for (int i = 0; i < n_; ++i) rows[i].push_back(i);
   for (const auto& [i, j] : pairs) {
@@ -291,38 +294,46 @@ __attribute__((target("avx2,fma"), always_inline)) inline void upperScatterBlock
   _mm256_store_pd(tj.v, _mm256_add_pd(_mm256_load_pd(tj.v), upperTransposed(r, x0, x1, x2)));
 }
 
-// One sweep: each block (i, j) adds to row i's sum and, transposed, to t_j; y_i is t_i plus row i's
-// sum. Columns ascend in a row, so only a row's last block can be in the last column, whose x_j is
-// loaded with a mask (nothing follows it); the others load four doubles without a test.
+// Row i of the scatter sweep: each block (i, j) adds to row i's sum and, transposed, to t_j; y_i is
+// t_i plus the row's sum. Columns ascend in a row, so only a row's last block can be in the last
+// column, whose x_j is loaded with a mask (nothing follows it). Last: the row may have such a
+// block, or be the last row; rows before the first that can are swept without the tests.
+template <bool Last>
+__attribute__((target("avx2,fma"), always_inline)) inline void upperScatterRow(const UpperPattern& A, const double* x, double* y, Quad* t,
+                                                                               int i, __m256i three, __m128d& dotLo, __m128d& dotHi) {
+  // Broadcast once: y's stores could alias x as far as the compiler knows.
+  const double* xi = x + 3 * static_cast<long>(i);
+  const __m256d x0 = _mm256_set1_pd(xi[0]), x1 = _mm256_set1_pd(xi[1]), x2 = _mm256_set1_pd(xi[2]);
+  const int begin = A.rowStart[i], end = A.rowEnd[i];
+  const int open = Last && end - 1 > begin && A.cols[end - 1] == A.n - 1 ? end - 1 : end;
+  RowSum sum;
+  rowSumStart(sum, A.values + 9 * static_cast<long>(begin), Last ? triple(x, i, A.n, three) : _mm256_loadu_pd(xi));
+  for (int s = begin + 1; s < open; ++s) {
+    const long j = A.cols[s];
+    upperScatterBlock(sum, A.values + 9 * static_cast<long>(s), _mm256_loadu_pd(x + 3 * j), x0, x1, x2, t[j]);
+  }
+  if (Last && open < end)
+    upperScatterBlock(sum, A.values + 9 * static_cast<long>(open), _mm256_maskload_pd(x + 3 * static_cast<long>(A.n - 1), three), x0, x1,
+                      x2, t[A.n - 1]);
+  __m128d lo = _mm_load_pd(t[i].v);
+  double hi = t[i].v[2];
+  rowSumFinish(sum, _mm256_castsi256_pd(three), lo, hi);
+  _mm_storeu_pd(y + 3 * static_cast<long>(i), lo);
+  y[3 * static_cast<long>(i) + 2] = hi;
+  rowDotAvx2(xi, lo, hi, dotLo, dotHi);
+}
+
 __attribute__((target("avx2,fma"))) void upperScatterAvx2(UpperPattern A, const double* x, double* y, int, int, double* dot) {
   const __m256i three = _mm256_set_epi64x(0, -1, -1, -1);
-  const __m256d keep = _mm256_castsi256_pd(three);
   __m128d dotLo = _mm_setzero_pd(), dotHi = _mm_setzero_pd();
   thread_local std::vector<Quad> sums;
   sums.assign(static_cast<size_t>(A.n), Quad{});
   Quad* t = sums.data();
-  for (int i = 0; i < A.n; ++i) {
-    // Broadcast once: y's stores could alias x as far as the compiler knows.
-    const double* xi = x + 3 * static_cast<long>(i);
-    const __m256d x0 = _mm256_set1_pd(xi[0]), x1 = _mm256_set1_pd(xi[1]), x2 = _mm256_set1_pd(xi[2]);
-    const int begin = A.rowStart[i], end = A.rowEnd[i];
-    const int open = end - 1 > begin && A.cols[end - 1] == A.n - 1 ? end - 1 : end;
-    RowSum sum;
-    rowSumStart(sum, A.values + 9 * static_cast<long>(begin), triple(x, i, A.n, three));
-    for (int s = begin + 1; s < open; ++s) {
-      const long j = A.cols[s];
-      upperScatterBlock(sum, A.values + 9 * static_cast<long>(s), _mm256_loadu_pd(x + 3 * j), x0, x1, x2, t[j]);
-    }
-    if (open < end)
-      upperScatterBlock(sum, A.values + 9 * static_cast<long>(open), _mm256_maskload_pd(x + 3 * static_cast<long>(A.n - 1), three), x0,
-                        x1, x2, t[A.n - 1]);
-    __m128d lo = _mm_load_pd(t[i].v);
-    double hi = t[i].v[2];
-    rowSumFinish(sum, keep, lo, hi);
-    _mm_storeu_pd(y + 3 * static_cast<long>(i), lo);
-    y[3 * static_cast<long>(i) + 2] = hi;
-    rowDotAvx2(xi, lo, hi, dotLo, dotHi);
-  }
+  // The first row with a block in the last column (colBlocks: rows ascending), else the last row.
+  const int lastFrom = A.n == 0 ? 0 : A.colStart[A.n - 1] < A.colStart[A.n] ? A.colBlocks[A.colStart[A.n - 1]].first : A.n - 1;
+  int i = 0;
+  for (; i < lastFrom; ++i) upperScatterRow<false>(A, x, y, t, i, three, dotLo, dotHi);
+  for (; i < A.n; ++i) upperScatterRow<true>(A, x, y, t, i, three, dotLo, dotHi);
   if (dot) *dot = _mm_cvtsd_f64(dotLo) + _mm_cvtsd_f64(_mm_unpackhi_pd(dotLo, dotLo)) + _mm_cvtsd_f64(dotHi);
 }
 
@@ -404,19 +415,23 @@ void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
 }
 
 void BlockSparseMatrix::constrainNodes(const std::vector<int>& nodes) {
-  std::vector<char> fixed(n_, 0);
-  for (int i : nodes) fixed[i] = 1;
-  for (int i = 0; i < n_; ++i)
-    for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
-      if (fixed[i] || fixed[cols_[s]]) block(s).setZero();
-  for (int i : nodes) block(diag_[i]).setIdentity();
-  if (upper()) {
+  if (rowEnd_.size() != static_cast<size_t>(n_) || nodes != heldNodes_) {
+    // The blocks to clear and the rows' ends, found once for a set of nodes (every step has the same).
+    std::vector<char> fixed(n_, 0);
+    for (int i : nodes) fixed[i] = 1;
+    heldSlots_.clear();
+    for (int i = 0; i < n_; ++i)
+      for (int s = rowStart_[i]; s < rowStart_[i + 1]; ++s)
+        if (fixed[i] || fixed[cols_[s]]) heldSlots_.push_back(s);
     // A held row is its diagonal now: the product skips its other blocks, all zero, until the
     // values are written again. (Its column's blocks in other rows are zero too, but multiplied.)
     rowEnd_.assign(rowStart_.begin() + 1, rowStart_.end());
     for (int i : nodes) rowEnd_[i] = diag_[i] + 1;
-    held_ = true;
+    heldNodes_ = nodes;
   }
+  for (int s : heldSlots_) std::fill_n(values_.begin() + 9 * static_cast<long>(s), 9, 0.0);
+  for (int i : nodes) Eigen::Map<Block>(values_.data() + 9 * static_cast<long>(diag_[i])).setIdentity();
+  held_ = upper();
 }
 
 void BlockSparseMatrix::projectNodes(const std::vector<std::pair<int, Eigen::Matrix3d>>& projectors) {

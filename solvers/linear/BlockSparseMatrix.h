@@ -76,8 +76,9 @@ class BlockSparseMatrix {
   std::vector<int> colStart_;
   std::vector<std::pair<int, int>> colBlocks_;
   std::vector<double> values_;
-  // After constrainNodes in upper storage: where each row's blocks end for the product.
-  std::vector<int> rowEnd_;
+  // constrainNodes' last nodes, the slots of their rows' and columns' blocks, and where each row's
+  // blocks end for the product once they are cleared (held_: in upper storage, until the next write).
+  std::vector<int> heldNodes_, heldSlots_, rowEnd_;
   bool held_ = false;
 };
 
