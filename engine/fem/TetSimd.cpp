@@ -265,9 +265,10 @@ __attribute__((target("avx512f,avx512vl,fma"), flatten)) void largeForcesAvx512(
 // overlap, so no store has to be forwarded to a wider load.
 __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const double* R, const double* G, double la, double ma,
                                                                           double* values, const int* slots) {
-  double h[4][3];  // h = R^T G
+  double h[4][3];  // h = R^T G, the multiply-adds spelt out: blocksAvx512 forms them in this order
   for (int k = 0; k < 4; ++k)
-    for (int r = 0; r < 3; ++r) h[k][r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
+    for (int r = 0; r < 3; ++r)
+      h[k][r] = std::fma(R[3 * r + 2], G[3 * k + 2], std::fma(R[3 * r], G[3 * k], R[3 * r + 1] * G[3 * k + 1]));
   __m256d S[4], T[4], laP[4], laQ[4], maP[4], maQ[4];
   for (int k = 0; k < 4; ++k) {
     const double* v = h[k];
@@ -309,8 +310,8 @@ __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest
 // that each block is two fused multiply-adds and one load-add-store (a third less time than
 // blocksAvx2 on the gel phantom); the ninth entry as there. h = R^T G is formed in the lanes' own
 // patterns from R's entries (h written as scalars and read back as a vector waited on the stores:
-// a quarter of this kernel's time), with the multiply-adds of blocksAvx2 in their order, so the
-// same rounding. The loops over the node pairs are unrolled: all vectors stay in registers.
+// a quarter of this kernel's time), with the multiply-adds of blocksAvx2 in their order: the same
+// results to the bit. The loops over the node pairs are unrolled: all vectors stay in registers.
 __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void blocksAvx512(const double* R, const double* G, double la,
                                                                                        double ma, double* values, const int* slots) {
   // Lane p of a block holds entry (r, c) = (p % 3, p / 3): P = h by rows, S = h by columns, so
@@ -327,9 +328,9 @@ __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void block
   for (int k = 0; k < 4; ++k) {
     const double* g = G + 3 * k;
     const __m512d g0 = _mm512_set1_pd(g[0]), g1 = _mm512_set1_pd(g[1]), g2 = _mm512_set1_pd(g[2]);
-    const __m512d P = _mm512_fmadd_pd(byRow[2], g2, _mm512_fmadd_pd(byRow[1], g1, _mm512_mul_pd(byRow[0], g0)));
-    S[k] = _mm512_fmadd_pd(byCol[2], g2, _mm512_fmadd_pd(byCol[1], g1, _mm512_mul_pd(byCol[0], g0)));
-    h2[k] = std::fma(R[8], g[2], std::fma(R[7], g[1], R[6] * g[0]));
+    const __m512d P = _mm512_fmadd_pd(byRow[2], g2, _mm512_fmadd_pd(byRow[0], g0, _mm512_mul_pd(byRow[1], g1)));
+    S[k] = _mm512_fmadd_pd(byCol[2], g2, _mm512_fmadd_pd(byCol[0], g0, _mm512_mul_pd(byCol[1], g1)));
+    h2[k] = std::fma(R[8], g[2], std::fma(R[6], g[0], R[7] * g[1]));
     laP[k] = _mm512_mul_pd(_mm512_set1_pd(la), P);
     maP[k] = _mm512_mul_pd(_mm512_set1_pd(ma), P);
   }

@@ -8,7 +8,10 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
@@ -245,6 +248,69 @@ TEST(VectorKernels, StiffnessBlocksOfARangeMatchTheEigenKernel) {
       for (int j = 0; j < 4; ++j) ref.block<3, 3>(3 * (e + i), 3 * (e + j)) += Ke.block<3, 3>(3 * i, 3 * j);
   }
   EXPECT_LE((K.toDense() - ref).cwiseAbs().maxCoeff(), 1e-12 * ref.cwiseAbs().maxCoeff());
+}
+
+// A fingerprint of the element forces, frames and stiffness blocks of a chain of elements, as this
+// process's kernels compute them (the bits of every value, hashed).
+std::string kernelFingerprint() {
+  std::mt19937_64 gen(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const int count = 37, nodes = count + 3;  // groups of eight and of four, and single elements
+  Eigen::Matrix3Xd rest(3, nodes), x(3, nodes);
+  for (int i = 0; i < 3 * nodes; ++i) rest.data()[i] = u(gen);
+  for (int i = 0; i < 3 * nodes; ++i) x.data()[i] = rest.data()[i] + 0.05 * u(gen);
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
+  std::vector<fem::ElementRest> elements;
+  for (int e = 0; e < count; ++e) {
+    tets.col(e) << e, e + 1, e + 2, e + 3;
+    fem::Mat34 X;
+    for (int k = 0; k < 4; ++k) X.col(k) = rest.col(e + k);
+    elements.push_back(fem::restElement(fem::Method::Large, X, fem::Lame::fromYoungPoisson(1e3 + 1e4 * (1 + u(gen)), 0.4)));
+  }
+  Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, nodes);
+  std::vector<Eigen::Matrix3d> R(count);
+  fem::addLargeTetrahedraForces(x.data(), tets.data(), 0, count, elements, fem::largeTetrahedraLanes(elements), R.data(), f.data());
+  std::vector<std::array<int, 16>> slots(count);
+  for (int e = 0; e < count; ++e)
+    for (int k = 0; k < 16; ++k) slots[e][k] = 16 * e + k;
+  std::vector<double> blocks(9 * 16 * count + 1, 0.0);
+  fem::addTetrahedraBlocks(elements, R.data(), slots.data(), 0, count, 0.3, blocks.data());
+  unsigned long long h = 1469598103934665603ULL;  // FNV-1a over the values' bits
+  auto mix = [&](const double* v, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      unsigned long long b;
+      std::memcpy(&b, v + i, sizeof b);
+      h = (h ^ b) * 1099511628211ULL;
+    }
+  };
+  mix(f.data(), f.size());
+  for (const auto& r : R) mix(r.data(), 9);
+  mix(blocks.data(), blocks.size());
+  char text[32];
+  std::snprintf(text, sizeof text, "%016llx", h);
+  return text;
+}
+
+// Prints kernelFingerprint(); run by the test below in a process of its own.
+TEST(VectorKernels, DISABLED_PrintFingerprint) { std::printf("fingerprint %s\n", kernelFingerprint().c_str()); }
+
+// The AVX-512 forces and blocks give the AVX2 ones' results to the bit: this process's fingerprint
+// against that of the same test binary run with VISCERA_SIMD=avx2.
+TEST(VectorKernels, Avx512VersionsGiveTheAvx2ResultsToTheBit) {
+  if (std::string(fem::tetrahedronKernelsVersion()) != "avx512") GTEST_SKIP() << "runs the AVX-512 kernels only";
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  FILE* child = popen(("VISCERA_SIMD=avx2 '" + self +
+                       "' --gtest_also_run_disabled_tests --gtest_filter=VectorKernels.DISABLED_PrintFingerprint 2>&1")
+                          .c_str(),
+                      "r");
+  ASSERT_NE(child, nullptr);
+  std::string out;
+  char buf[4096];
+  while (size_t n = std::fread(buf, 1, sizeof buf, child)) out.append(buf, n);
+  ASSERT_EQ(pclose(child), 0) << out;
+  const size_t at = out.find("fingerprint ");
+  ASSERT_NE(at, std::string::npos) << out;
+  EXPECT_EQ(out.substr(at + 12, 16), kernelFingerprint());
 }
 
 // The same elements assembled into upper storage: each stored block (i <= j) is the full
