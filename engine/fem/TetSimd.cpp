@@ -71,12 +71,12 @@ __attribute__((target("avx512f,avx512vl,fma"))) inline void reciprocalRoot(const
 #endif
 
 // The stress of the corotational ("large") tetrahedron in its frame, for one element (T = double)
-// or four (T = Lanes). p: node positions; X, G: rest positions in the element frame and shape-
-// function gradients (column-major 3 x 4); ex, ey, ez: the frame's axes; s: sigma's entries
-// (00, 11, 22, 01, 02, 12).
-template <class T>
-__attribute__((always_inline)) inline void largeStress(const T (&p)[4][3], const T* X, const T* G, const T& lambda, const T& mu,
-                                                       T (&ex)[3], T (&ey)[3], T (&ez)[3], T (&s)[6]) {
+// or four or eight (T = Lanes, Lanes8). p: node positions; X, G: rest positions in the element
+// frame and shape-function gradients (column-major 3 x 4; In: a pointer, or LaneFields); ex, ey,
+// ez: the frame's axes; s: sigma's entries (00, 11, 22, 01, 02, 12).
+template <class T, class In>
+__attribute__((always_inline)) inline void largeStress(const T (&p)[4][3], In X, In G, const T& lambda, const T& mu, T (&ex)[3],
+                                                       T (&ey)[3], T (&ez)[3], T (&s)[6]) {
   T e[4][3];  // edges from node 0 (e[0] = 0)
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) e[k][r] = p[k][r] - p[0][r];
@@ -111,9 +111,9 @@ __attribute__((always_inline)) inline void largeStress(const T (&p)[4][3], const
 
 // The element force of the corotational tetrahedron (as largeStress, with its volume): R, the
 // frame (column-major); f, the nodal forces -V R^T sigma g_k.
-template <class T>
-__attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const T* X, const T* G, const T& volume,
-                                                      const T& lambda, const T& mu, T (&R)[9], T (&f)[4][3]) {
+template <class T, class In>
+__attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], In X, In G, const T& volume, const T& lambda, const T& mu,
+                                                      T (&R)[9], T (&f)[4][3]) {
   T ex[3], ey[3], ez[3], s[6];
   largeStress(p, X, G, lambda, mu, ex, ey, ez, s);
   for (int c = 0; c < 3; ++c) {
@@ -122,7 +122,7 @@ __attribute__((always_inline)) inline void largeForce(const T (&p)[4][3], const 
     R[3 * c + 2] = ez[c];
   }
   for (int k = 0; k < 4; ++k) {
-    const T* g = G + 3 * k;
+    const In g = G + 3 * k;
     const T l0 = -volume * (s[0] * g[0] + s[3] * g[1] + s[4] * g[2]);
     const T l1 = -volume * (s[3] * g[0] + s[1] * g[1] + s[5] * g[2]);
     const T l2 = -volume * (s[4] * g[0] + s[5] * g[1] + s[2] * g[2]);
@@ -174,12 +174,21 @@ void largeForcesGeneric(const double* x, const int* tets, int first, int count, 
 
 #if defined(__x86_64__)
 // Groups of four (or eight) elements starting at a multiple of four (eight) run in the lanes; the
-// rest one by one. The group starting at e: its rest data from the lanes (kept in groups of four)
-// and its nodes' positions, one element per lane.
-__attribute__((target("avx2,fma"))) inline void loadGroup(const double* x, const int* tets, const double* lanes,
-                                                                         int e, Lanes (&in)[kLaneFields], Lanes (&p)[4][3]) {
-  const double* group = laneData(lanes, e);
-  for (int k = 0; k < kLaneFields; ++k) std::memcpy(&in[k], group + kLaneGroup * k, sizeof(Lanes));  // unaligned
+// rest one by one. A group's rest values are read from the lanes where they are used, each field a
+// vector of V (copied first to the stack, the group's 28 fields waited on their loads at once).
+template <class V>
+struct LaneFields {
+  const double* at;  // field 0 of the group's first element
+  __attribute__((always_inline)) V operator[](int k) const {
+    V v;
+    std::memcpy(&v, at + kLaneGroup * k, sizeof v);  // unaligned
+    return v;
+  }
+  LaneFields operator+(int k) const { return {at + kLaneGroup * k}; }
+};
+
+// The positions of the nodes of the group starting at e, one element per lane.
+__attribute__((target("avx2,fma"))) inline void loadPositions(const double* x, const int* tets, int e, Lanes (&p)[4][3]) {
   const int* t = tets + 4 * e;
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r)
@@ -187,15 +196,7 @@ __attribute__((target("avx2,fma"))) inline void loadGroup(const double* x, const
                       x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
 }
 
-__attribute__((target("avx512f,avx512vl,fma"))) inline void loadGroup(const double* x, const int* tets,
-                                                                                    const double* lanes, int e,
-                                                                                    Lanes8 (&in)[kLaneFields], Lanes8 (&p)[4][3]) {
-  // Field by field through a register (a copy of the group as one block became a slow string move).
-  const double* group = laneData(lanes, e);
-  for (int k = 0; k < kLaneFields; ++k) {
-    const __m512d v = _mm512_loadu_pd(group + kLaneGroup * k);
-    std::memcpy(&in[k], &v, sizeof v);
-  }
+__attribute__((target("avx512f,avx512vl,fma"))) inline void loadPositions(const double* x, const int* tets, int e, Lanes8 (&p)[4][3]) {
   const int* t = tets + 4 * e;
   const auto at = [&](int l, int k, int r) { return x[3 * static_cast<long>(t[4 * l + k]) + r]; };
   for (int k = 0; k < 4; ++k)
@@ -208,10 +209,11 @@ __attribute__((target("avx512f,avx512vl,fma"))) inline void loadGroup(const doub
 template <class V, int W>
 __attribute__((always_inline)) inline void largeForcesGroup(const double* x, const int* tets, const double* lanes, int e, double* R,
                                                             double* f) {
-  V in[kLaneFields], p[4][3], Rl[9], fl[4][3];
-  loadGroup(x, tets, lanes, e, in, p);
-  const int* t = tets + 4 * e;
+  V p[4][3], Rl[9], fl[4][3];
+  loadPositions(x, tets, e, p);
+  const LaneFields<V> in{laneData(lanes, e)};
   largeForce(p, in, in + 12, in[24], in[25], in[26], Rl, fl);
+  const int* t = tets + 4 * e;
   for (int l = 0; l < W; ++l) {
     double* Re = R + 9 * static_cast<long>(e + l);
     for (int c = 0; c < 9; ++c) Re[c] = Rl[c][l];
@@ -378,45 +380,60 @@ __attribute__((always_inline)) inline void orientedVolume(const T (&p)[4][3], co
   v = sign * (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]));
 }
 
-using InvertedKernel = void (*)(const double*, const int*, int, int, const ElementRest*, std::vector<int>&);
+using InvertedKernel = void (*)(const double*, const int*, int, int, const double*, std::vector<int>&);
 
-// Elements [first, end).
-void invertedGeneric(const double* x, const int* tets, int first, int end, const ElementRest* rest, std::vector<int>& bad) {
+// Elements [first, end); sign: each element's rest orientation, contiguous (read from the elements'
+// rest data, one cache line each, it took most of this check's time).
+void invertedGeneric(const double* x, const int* tets, int first, int end, const double* sign, std::vector<int>& bad) {
   for (int e = first; e < end; ++e) {
     double p[4][3];
     for (int k = 0; k < 4; ++k)
       for (int r = 0; r < 3; ++r) p[k][r] = x[3 * static_cast<long>(tets[4 * e + k]) + r];
     double v;
-    orientedVolume(p, rest[e].sign, v);
+    orientedVolume(p, sign[e], v);
     if (!(v > 0.0)) bad.push_back(e);
   }
 }
 
 #if defined(__x86_64__)
-__attribute__((target("avx2,fma"))) void invertedAvx2(const double* x, const int* tets, int first, int end,
-                                                      const ElementRest* rest, std::vector<int>& bad) {
+__attribute__((target("avx2,fma"), flatten)) void invertedAvx2(const double* x, const int* tets, int first, int end, const double* sign,
+                                                               std::vector<int>& bad) {
   int e = first;
   for (; e + 4 <= end; e += 4) {
-    Lanes p[4][3];
-    const int* t = tets + 4 * e;
-    for (int k = 0; k < 4; ++k)
-      for (int r = 0; r < 3; ++r)
-        p[k][r] = Lanes{x[3 * static_cast<long>(t[k]) + r], x[3 * static_cast<long>(t[4 + k]) + r],
-                        x[3 * static_cast<long>(t[8 + k]) + r], x[3 * static_cast<long>(t[12 + k]) + r]};
-    Lanes v;
-    orientedVolume(p, Lanes{rest[e].sign, rest[e + 1].sign, rest[e + 2].sign, rest[e + 3].sign}, v);
+    Lanes p[4][3], sg, v;
+    loadPositions(x, tets, e, p);
+    std::memcpy(&sg, sign + e, sizeof sg);
+    orientedVolume(p, sg, v);
     for (int l = 0; l < 4; ++l)
       if (!(v[l] > 0.0)) bad.push_back(e + l);
   }
-  invertedGeneric(x, tets, e, end, rest, bad);
+  invertedGeneric(x, tets, e, end, sign, bad);
+}
+
+__attribute__((target("avx512f,avx512vl,fma"), flatten)) void invertedAvx512(const double* x, const int* tets, int first, int end,
+                                                                             const double* sign, std::vector<int>& bad) {
+  int e = first;
+  for (; e + 8 <= end; e += 8) {
+    Lanes8 p[4][3], sg, v;
+    loadPositions(x, tets, e, p);
+    std::memcpy(&sg, sign + e, sizeof sg);
+    orientedVolume(p, sg, v);
+    __m512d w;
+    std::memcpy(&w, &v, sizeof w);
+    if (_mm512_cmp_pd_mask(w, _mm512_setzero_pd(), _CMP_GT_OQ) == 0xff) continue;  // all oriented as at rest
+    for (int l = 0; l < 8; ++l)
+      if (!(v[l] > 0.0)) bad.push_back(e + l);
+  }
+  invertedAvx2(x, tets, e, end, sign, bad);
 }
 
 __attribute__((target("avx2,fma"), flatten)) void largeVonMisesAvx2(const double* x, const int* tets, int count, const ElementRest* rest,
                                                            const double* lanes, double* out) {
   int e = 0;
   for (; e + 4 <= count; e += 4) {
-    Lanes in[kLaneFields], p[4][3], ex[3], ey[3], ez[3], s[6];
-    loadGroup(x, tets, lanes, e, in, p);
+    Lanes p[4][3], ex[3], ey[3], ez[3], s[6];
+    loadPositions(x, tets, e, p);
+    const LaneFields<Lanes> in{laneData(lanes, e)};
     largeStress(p, in, in + 12, in[25], in[26], ex, ey, ez, s);
     const Lanes v = vonMisesSquared(s);
     for (int l = 0; l < 4; ++l) out[e + l] = std::sqrt(v[l]);
@@ -445,6 +462,7 @@ struct Kernels {
       version = "avx512";
       blocks = blocksRangeAvx512;
       forces = largeForcesAvx512;
+      inverted = invertedAvx512;
     }
 #endif
   }
@@ -489,9 +507,15 @@ void addLargeTetrahedraForces(const double* x, const int* tets, int first, int c
   kernels().forces(x, tets, first, count, rest.data(), lanes.data(), R->data(), f);
 }
 
-std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest) {
+std::vector<double> restSigns(const std::vector<ElementRest>& rest) {
+  std::vector<double> sign(rest.size());
+  for (size_t e = 0; e < rest.size(); ++e) sign[e] = rest[e].sign;
+  return sign;
+}
+
+std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<double>& sign) {
   std::vector<int> bad;
-  kernels().inverted(x, tets, 0, static_cast<int>(rest.size()), rest.data(), bad);
+  kernels().inverted(x, tets, 0, static_cast<int>(sign.size()), sign.data(), bad);
   return bad;
 }
 

@@ -38,9 +38,12 @@ void addLargeTetrahedraForces(const double* x, const int* tets, int first, int c
 void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector<ElementRest>& rest,
                              const std::vector<double>& lanes, double* out);
 
-// The elements whose orientation at x (3 x n) differs from their rest orientation (ElementRest::
-// sign), or is degenerate: the health check after each step, four elements at a time.
-std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<ElementRest>& rest);
+// The elements' rest orientations (ElementRest::sign), contiguous, for invertedTetrahedra: part of
+// the model, built once.
+std::vector<double> restSigns(const std::vector<ElementRest>& rest);
+// The elements whose orientation at x (3 x n) differs from their rest orientation (sign, one per
+// element), or is degenerate: the health check after each step, four or eight elements at a time.
+std::vector<int> invertedTetrahedra(const double* x, const int* tets, const std::vector<double>& sign);
 
 // Which version the kernels run: "avx512" (the stiffness blocks and forces; the others AVX2), "avx2" or
 // "generic".

@@ -58,6 +58,7 @@ void TetrahedronFEMForceField::init() {
     rot0_[e] = fem::frame(method_, X);
   }
   if (method_ == fem::Method::Large && !svd_) lanes_ = fem::largeTetrahedraLanes(rest_);
+  signs_ = fem::restSigns(rest_);
   colors_ = io::cachedDerived<ElementColoring>("element colouring", io::keyBytes(tets_) + std::to_string(n),
                                                               [&] { return colorElements(tets_, n); });
 }
@@ -186,7 +187,7 @@ double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) cons
 
 std::vector<int> TetrahedronFEMForceField::invertedElements(const Eigen::Matrix3Xd& x) const {
   // An element is inverted when its orientation differs from the rest orientation.
-  return fem::invertedTetrahedra(x.data(), tets_.data(), rest_);
+  return fem::invertedTetrahedra(x.data(), tets_.data(), signs_);
 }
 
 namespace {

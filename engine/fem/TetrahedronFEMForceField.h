@@ -77,6 +77,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   std::vector<fem::ElementRest> rest_;
   std::vector<Eigen::Matrix3d> rot0_;      // frame of each element at rest
   std::vector<double> lanes_;              // rest data eight elements abreast (fem::largeTetrahedraLanes)
+  std::vector<double> signs_;              // rest orientations (fem::restSigns), for the health check
   std::shared_ptr<const ElementColoring> colors_;  // shared by models of one mesh
   // Block slots of each element in the assembled matrix, for the full and the upper storage.
   std::array<std::vector<std::array<int, 16>>, 2> slots_;
