@@ -396,35 +396,32 @@ void invertedGeneric(const double* x, const int* tets, int first, int end, const
 }
 
 #if defined(__x86_64__)
-__attribute__((target("avx2,fma"), flatten)) void invertedAvx2(const double* x, const int* tets, int first, int end, const double* sign,
-                                                               std::vector<int>& bad) {
+// The groups of W elements (lanes of V) from `first` on while a whole group fits before `end`;
+// returns where they stop.
+template <class V, int W>
+__attribute__((always_inline)) inline int invertedGroups(const double* x, const int* tets, int first, int end, const double* sign,
+                                                         std::vector<int>& bad) {
   int e = first;
-  for (; e + 4 <= end; e += 4) {
-    Lanes p[4][3], sg, v;
+  for (; e + W <= end; e += W) {
+    V p[4][3], sg, v;
     loadPositions(x, tets, e, p);
     std::memcpy(&sg, sign + e, sizeof sg);
     orientedVolume(p, sg, v);
-    for (int l = 0; l < 4; ++l)
+    for (int l = 0; l < W; ++l)
       if (!(v[l] > 0.0)) bad.push_back(e + l);
   }
-  invertedGeneric(x, tets, e, end, sign, bad);
+  return e;
+}
+
+__attribute__((target("avx2,fma"), flatten)) void invertedAvx2(const double* x, const int* tets, int first, int end, const double* sign,
+                                                               std::vector<int>& bad) {
+  invertedGeneric(x, tets, invertedGroups<Lanes, 4>(x, tets, first, end, sign, bad), end, sign, bad);
 }
 
 __attribute__((target("avx512f,avx512vl,fma"), flatten)) void invertedAvx512(const double* x, const int* tets, int first, int end,
                                                                              const double* sign, std::vector<int>& bad) {
-  int e = first;
-  for (; e + 8 <= end; e += 8) {
-    Lanes8 p[4][3], sg, v;
-    loadPositions(x, tets, e, p);
-    std::memcpy(&sg, sign + e, sizeof sg);
-    orientedVolume(p, sg, v);
-    __m512d w;
-    std::memcpy(&w, &v, sizeof w);
-    if (_mm512_cmp_pd_mask(w, _mm512_setzero_pd(), _CMP_GT_OQ) == 0xff) continue;  // all oriented as at rest
-    for (int l = 0; l < 8; ++l)
-      if (!(v[l] > 0.0)) bad.push_back(e + l);
-  }
-  invertedAvx2(x, tets, e, end, sign, bad);
+  const int e = invertedGroups<Lanes, 4>(x, tets, invertedGroups<Lanes8, 8>(x, tets, first, end, sign, bad), end, sign, bad);
+  invertedGeneric(x, tets, e, end, sign, bad);
 }
 
 __attribute__((target("avx2,fma"), flatten)) void largeVonMisesAvx2(const double* x, const int* tets, int count, const ElementRest* rest,
