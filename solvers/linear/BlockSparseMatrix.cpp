@@ -222,8 +222,9 @@ __attribute__((target("avx2,fma"))) void multiplyRowsAvx2(const int* rowStart, c
 
 // The upper-storage product with AVX2: block rows loaded as in multiplyRowsAvx2. Their fourth
 // lanes are never cleared: in the row sums they are dropped at the end (rowSumFinish), and of the
-// transposed product only the first three lanes are used. y_j is updated as two doubles and one,
-// never as four: a four-double store overlapping the next node's load would stall store forwarding.
+// transposed product only the first three lanes are used. The transposed products are summed in
+// four-double node slots (Quad below), not in y: four doubles stored into y's node triples would
+// overlap the next node's entries, whose load would then wait on store forwarding.
 __attribute__((target("avx2,fma"), always_inline)) inline void upperLoad(const double* b, __m256d (&r)[3]) {
   for (int k = 0; k < 3; ++k) {
     r[k] = _mm256_loadu_pd(b + 3 * k);
