@@ -175,8 +175,13 @@ bool MechanicalSystem::prepareUpperAssembly() {
 void MechanicalSystem::assembleStiffness(const State& s, BlockSparseMatrix& K, double undampedScale, double factor) const {
   if (!patternReady_) throw std::logic_error("MechanicalSystem::assembleStiffness before prepareAssembly");
   if (K.blockRows() != nodes()) K = pattern_;
-  K.setZero();
-  for (ForceField* ff : forces_) ff->addStiffness(s, K, factor * (ff->rayleighDamped() ? 1.0 : undampedScale));
+  const auto scaled = [&](const ForceField* ff) { return factor * (ff->rayleighDamped() ? 1.0 : undampedScale); };
+  // The first field that can set the matrix does (no zeroing first); the others add in their order.
+  size_t setter = 0;
+  while (setter < forces_.size() && !forces_[setter]->setStiffness(s, K, scaled(forces_[setter]))) ++setter;
+  if (setter == forces_.size()) K.setZero();
+  for (size_t k = 0; k < forces_.size(); ++k)
+    if (k != setter) forces_[k]->addStiffness(s, K, scaled(forces_[k]));
   for (const InteractionForceField* ff : internal_)
     ff->forEachStiffnessBlock(s, [&](int, int i, int, int j, const Eigen::Matrix3d& Kij) { K.block(K.slot(i, j)) += factor * Kij; });
 }

@@ -54,6 +54,10 @@ class ForceField {
   virtual void prepareAssembly(const BlockSparseMatrix& K) {}
   // K += kFactor * (the force field's K).
   virtual void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {}
+  // K = kFactor * (the force field's K), whatever K held (every block of K's pattern is written:
+  // the ones it has no part in are zeroed), or false, K untouched, where it only adds: the first
+  // field of a body then saves zeroing the matrix before the assembly.
+  virtual bool setStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const { return false; }
   // Whether addStiffness also fills a matrix in upper storage (BlockSparseMatrix::Storage::Upper):
   // its K is symmetric and it skips the blocks below the diagonal (slot -1; addSymmetric does).
   virtual bool assemblesUpper() const { return false; }

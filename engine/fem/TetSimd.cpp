@@ -23,9 +23,11 @@ inline const double* laneData(const double* lanes, int e) {
   return lanes + kLaneFields * kLaneGroup * static_cast<long>(e / kLaneGroup) + e % kLaneGroup;
 }
 
-using BlocksKernel = void (*)(const ElementRest*, const double*, const int*, int, int, double, double*);
+using BlocksKernel = void (*)(const ElementRest*, const double*, const int*, int, int, double, double*, const std::uint16_t*);
 
-inline void blocksGeneric(const double* R, const double* G, double la, double ma, double* values, const int* slots) {
+// fresh: the element's first-writer bits (addTetrahedraBlocks), by slot index.
+inline void blocksGeneric(const double* R, const double* G, double la, double ma, double* values, const int* slots,
+                          std::uint16_t fresh) {
   double h[12];  // h = R^T G, column-major 3 x 4
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r) h[3 * k + r] = R[3 * r] * G[3 * k] + R[3 * r + 1] * G[3 * k + 1] + R[3 * r + 2] * G[3 * k + 2];
@@ -36,6 +38,7 @@ inline void blocksGeneric(const double* R, const double* G, double la, double ma
       if (slots[4 * j + i] < 0) continue;  // not stored (upper storage)
       const double d = ma * (G[3 * i] * G[3 * j] + G[3 * i + 1] * G[3 * j + 1] + G[3 * i + 2] * G[3 * j + 2]);
       double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
+      if (fresh >> (4 * j + i) & 1) std::fill_n(k, 9, 0.0);
       for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r) k[3 * c + r] += la * hi[r] * hj[c] + ma * hj[r] * hi[c] + (r == c ? d : 0.0);
     }
@@ -266,7 +269,7 @@ __attribute__((target("avx512f,avx512vl,fma"), flatten)) void largeForcesAvx512(
 // plus d = ma g_i . g_j on its diagonal (lanes 0 of both vectors and B22). Loads and stores never
 // overlap, so no store has to be forwarded to a wider load.
 __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const double* R, const double* G, double la, double ma,
-                                                                          double* values, const int* slots) {
+                                                                          double* values, const int* slots, std::uint16_t fresh) {
   double h[4][3];  // h = R^T G, the multiply-adds spelt out: blocksAvx512 forms them in this order
   for (int k = 0; k < 4; ++k)
     for (int r = 0; r < 3; ++r)
@@ -292,19 +295,23 @@ __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const 
       const __m256d v0 = _mm256_fmadd_pd(laP[i], S[j], _mm256_fmadd_pd(maP[j], S[i], diag));
       const __m256d v1 = _mm256_fmadd_pd(laQ[i], T[j], _mm256_fmadd_pd(maQ[j], T[i], diag));
       double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
-      _mm256_storeu_pd(k, _mm256_add_pd(_mm256_loadu_pd(k), v0));
-      _mm256_storeu_pd(k + 4, _mm256_add_pd(_mm256_loadu_pd(k + 4), v1));
-      k[8] += lm * h[i][2] * h[j][2] + d;
+      const bool set = fresh >> (4 * j + i) & 1;
+      const __m256d keep = _mm256_castsi256_pd(_mm256_set1_epi64x(set ? 0 : -1));  // the earlier value, or zero
+      _mm256_storeu_pd(k, _mm256_add_pd(_mm256_and_pd(_mm256_loadu_pd(k), keep), v0));
+      _mm256_storeu_pd(k + 4, _mm256_add_pd(_mm256_and_pd(_mm256_loadu_pd(k + 4), keep), v1));
+      k[8] = (set ? 0.0 : k[8]) + (lm * h[i][2] * h[j][2] + d);
     }
 }
 
 // Elements [first, first + count): one call per run, so no call per element.
 __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest, const double* R, const int* slots, int first,
-                                                         int count, double kFactor, double* values) {
+                                                         int count, double kFactor, double* values,
+    const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
-    blocksAvx2(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+    blocksAvx2(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
+                 firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 
@@ -315,7 +322,8 @@ __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest
 // a quarter of this kernel's time), with the multiply-adds of blocksAvx2 in their order: the same
 // results to the bit. The loops over the node pairs are unrolled: all vectors stay in registers.
 __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void blocksAvx512(const double* R, const double* G, double la,
-                                                                                       double ma, double* values, const int* slots) {
+                                                                                       double ma, double* values, const int* slots,
+                                                                                       std::uint16_t fresh) {
   // Lane p of a block holds entry (r, c) = (p % 3, p / 3): P = h by rows, S = h by columns, so
   // P_k = sum_m R(p % 3, m) g_km and S_k = sum_m R(p / 3, m) g_km, R by rows (index 8: R(2, 2)).
   const __m512d r07 = _mm512_loadu_pd(R), r8 = _mm512_set1_pd(R[8]);
@@ -346,27 +354,32 @@ __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void block
       const __m512d diag = _mm512_maskz_mov_pd(0x11, _mm512_set1_pd(d));  // entries (0, 0) and (1, 1)
       const __m512d v = _mm512_fmadd_pd(laP[i], S[j], _mm512_fmadd_pd(maP[j], S[i], diag));
       double* k = values + 9 * static_cast<long>(slots[4 * j + i]);  // K_ij by columns = K_ji by rows
-      _mm512_storeu_pd(k, _mm512_add_pd(_mm512_loadu_pd(k), v));
-      k[8] += lm * h2[i] * h2[j] + d;
+      const bool set = fresh >> (4 * j + i) & 1;
+      _mm512_storeu_pd(k, _mm512_add_pd(_mm512_maskz_loadu_pd(set ? 0 : 0xff, k), v));  // the earlier value, or zero
+      k[8] = (set ? 0.0 : k[8]) + (lm * h2[i] * h2[j] + d);
     }
 }
 
 __attribute__((target("avx512f,avx512vl,fma"))) void blocksRangeAvx512(const ElementRest* rest, const double* R, const int* slots,
-                                                                      int first, int count, double kFactor, double* values) {
+                                                                      int first, int count, double kFactor, double* values,
+    const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
-    blocksAvx512(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+    blocksAvx512(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
+                 firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 #endif
 
 void blocksRangeGeneric(const ElementRest* rest, const double* R, const int* slots, int first, int count, double kFactor,
-                        double* values) {
+                        double* values,
+    const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
-    blocksGeneric(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e));
+    blocksGeneric(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
+                 firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 
@@ -473,8 +486,8 @@ const Kernels& kernels() {
 }  // namespace
 
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
-                         int first, int count, double kFactor, double* values) {
-  kernels().blocks(rest.data(), R->data(), slots->data(), first, count, kFactor, values);
+                         int first, int count, double kFactor, double* values, const std::uint16_t* firstWriter) {
+  kernels().blocks(rest.data(), R->data(), slots->data(), first, count, kFactor, values, firstWriter);
 }
 
 void largeTetrahedraVonMises(const double* x, const int* tets, const std::vector<ElementRest>& rest,

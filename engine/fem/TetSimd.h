@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "engine/fem/TetKernel.h"
@@ -18,9 +19,11 @@ namespace viscera::fem {
 // for all 16 node pairs (i, j) of each element, where R is the element's frame (R[e]) and G its
 // rest shape-function gradients. `values` holds the matrix's row-major 3 x 3 blocks and
 // slots[e] the element's 16 block slots, row-major (slot of (i, j) at 4 i + j); a block whose slot
-// is -1 is not stored (upper storage) and is skipped.
+// is -1 is not stored (upper storage) and is skipped. With firstWriter, bit b of firstWriter[e]
+// set means the block at slots[e][b] is set, not added to (its earlier value is ignored): its
+// first writer, so that the matrix need not be zeroed first.
 void addTetrahedraBlocks(const std::vector<ElementRest>& rest, const Eigen::Matrix3d* R, const std::array<int, 16>* slots,
-                         int first, int count, double kFactor, double* values);
+                         int first, int count, double kFactor, double* values, const std::uint16_t* firstWriter = nullptr);
 
 // The rest data of consecutive elements in groups of eight, one element per lane (structure of
 // arrays), for addLargeTetrahedraForces: part of the model, built once.

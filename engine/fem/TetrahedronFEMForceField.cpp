@@ -157,6 +157,23 @@ void TetrahedronFEMForceField::prepareAssembly(const BlockSparseMatrix& K) {
   for (int e = 0; e < tets_.cols(); ++e)
     for (int i = 0; i < 4; ++i)
       for (int j = 0; j < 4; ++j) slots[e][4 * i + j] = K.slot(tets_(i, e), tets_(j, e));
+  // Each slot's first writer in the assembly's order: colour by colour, run by run (elements of
+  // one colour share no slot, so threads keep this order for each slot).
+  auto& first = firstWriter_[K.upper()];
+  first.assign(tets_.cols(), 0);
+  std::vector<char> written(K.nonZeroBlocks(), 0);
+  forEachColoredRun(*colors_, [&](int begin, int count) {
+    for (int e = begin; e < begin + count; ++e)
+      for (int b = 0; b < 16; ++b)
+        if (slots[e][b] >= 0 && !written[slots[e][b]]) {
+          written[slots[e][b]] = 1;
+          first[e] |= static_cast<std::uint16_t>(1u << b);
+        }
+  });
+  auto& unwritten = unwritten_[K.upper()];
+  unwritten.clear();
+  for (int s = 0; s < K.nonZeroBlocks(); ++s)
+    if (!written[s]) unwritten.push_back(s);
 }
 
 void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
@@ -177,6 +194,20 @@ void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K
   forEachColoredRun(*colors_, [&](int first, int count) {
     fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, K.values());
   });
+}
+
+bool TetrahedronFEMForceField::setStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const {
+  const auto& slots = slots_[K.upper()];
+  if ((exact_ && method_ != fem::Method::Small) || slots.size() != static_cast<size_t>(tets_.cols()) ||
+      firstWriter_[K.upper()].size() != slots.size())
+    return false;
+  double* values = K.values();
+  for (int b : unwritten_[K.upper()]) std::fill_n(values + 9 * static_cast<long>(b), 9, 0.0);
+  const Live& l = live(s);
+  forEachColoredRun(*colors_, [&](int first, int count) {
+    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, values, firstWriter_[K.upper()].data());
+  });
+  return true;
 }
 
 double TetrahedronFEMForceField::potentialEnergy(const Eigen::Matrix3Xd& x) const {

@@ -41,6 +41,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   void stiffnessPattern(std::vector<std::pair<int, int>>& pairs) const override;
   void prepareAssembly(const BlockSparseMatrix& K) override;
   void addStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
+  bool setStiffness(const State& s, BlockSparseMatrix& K, double kFactor) const override;
   // R K0 R^T is symmetric; the exact tangent is not.
   bool assemblesUpper() const override { return !exact_ || method_ == fem::Method::Small; }
   double potentialEnergy(const Eigen::Matrix3Xd& x) const override;
@@ -79,8 +80,12 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
   std::vector<double> lanes_;              // rest data eight elements abreast (fem::largeTetrahedraLanes)
   std::vector<double> signs_;              // rest orientations (fem::restSigns), for the health check
   std::shared_ptr<const ElementColoring> colors_;  // shared by models of one mesh
-  // Block slots of each element in the assembled matrix, for the full and the upper storage.
+  // Block slots of each element in the assembled matrix, for the full and the upper storage; per
+  // element, which of its slots it writes first in the assembly's order (fem::addTetrahedraBlocks'
+  // firstWriter); and the pattern's slots no element writes.
   std::array<std::vector<std::array<int, 16>>, 2> slots_;
+  std::array<std::vector<std::uint16_t>, 2> firstWriter_;
+  std::array<std::vector<int>, 2> unwritten_;
 };
 
 void registerTetrahedronFEM(Registry& r);

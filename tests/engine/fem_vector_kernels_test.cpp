@@ -7,7 +7,10 @@
 #include <tbb/global_control.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -349,6 +352,46 @@ TEST(VectorKernels, StiffnessBlocksInUpperStorageAreTheFullOnes) {
   EXPECT_EQ(compared, upper.nonZeroBlocks());
   const Eigen::MatrixXd F = full.toDense();
   EXPECT_LE((upper.toDense() - F).cwiseAbs().maxCoeff(), 1e-13 * F.cwiseAbs().maxCoeff());
+}
+
+// With first-writer bits the matrix need not be zeroed: each block is set by its first writer,
+// whatever it held (not a number here), and the matrix is the zeroed one's to the bit. Both
+// storages, elements sharing nodes out of order.
+TEST(VectorKernels, FirstWritersSetTheirBlocks) {
+  const int count = 13, nodes = count + 3;
+  std::vector<fem::ElementRest> elements;
+  std::vector<Eigen::Matrix3d> R;
+  std::vector<std::pair<int, int>> pairs;
+  std::vector<int> number(nodes);
+  for (int i = 0; i < nodes; ++i) number[i] = (7 * i) % nodes;  // a permutation: 7 and 16 are coprime
+  for (int e = 0; e < count; ++e) {
+    elements.push_back(fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(uniform(1e3, 1e5), 0.45)));
+    R.push_back(Eigen::AngleAxisd(uniform(-3, 3), Eigen::Vector3d::Random().normalized()).toRotationMatrix());
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) pairs.push_back({number[e + i], number[e + j]});
+  }
+  for (auto storage : {BlockSparseMatrix::Storage::Full, BlockSparseMatrix::Storage::Upper}) {
+    BlockSparseMatrix zeroed, set;
+    zeroed.setPattern(nodes, pairs, storage);
+    set.setPattern(nodes, pairs, storage);
+    std::vector<std::array<int, 16>> slots(count);
+    std::vector<std::uint16_t> first(count, 0);
+    std::vector<char> written(zeroed.nonZeroBlocks(), 0);
+    for (int e = 0; e < count; ++e)
+      for (int b = 0; b < 16; ++b) {
+        slots[e][b] = zeroed.slot(number[e + b / 4], number[e + b % 4]);
+        if (slots[e][b] >= 0 && !written[slots[e][b]]) {
+          written[slots[e][b]] = 1;
+          first[e] |= static_cast<std::uint16_t>(1u << b);
+        }
+      }
+    ASSERT_EQ(std::count(written.begin(), written.end(), 1), zeroed.nonZeroBlocks());
+    std::fill_n(set.values(), 9 * set.nonZeroBlocks(), std::nan(""));
+    fem::addTetrahedraBlocks(elements, R.data(), slots.data(), 0, count, -0.3, zeroed.values());
+    fem::addTetrahedraBlocks(elements, R.data(), slots.data(), 0, count, -0.3, set.values(), first.data());
+    EXPECT_EQ(std::memcmp(zeroed.values(), set.values(), sizeof(double) * 9 * zeroed.nonZeroBlocks()), 0)
+        << (storage == BlockSparseMatrix::Storage::Upper ? "upper" : "full");
+  }
 }
 
 TEST(VectorKernels, BlockProductMatchesTheDenseProduct) {
