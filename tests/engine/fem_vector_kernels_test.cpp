@@ -69,6 +69,24 @@ TEST(VectorKernels, LargeForceMatchesTheEigenKernel) {
   }
 }
 
+// A chain of `count` elements sharing nodes: element e on nodes e .. e + 3 of rest, with Young's
+// modulus young(e) (called in element order) and Poisson ratio 0.4.
+struct Chain {
+  Eigen::Matrix<int, 4, Eigen::Dynamic> tets;
+  std::vector<fem::ElementRest> elements;
+};
+template <class Young>
+Chain chainOf(const Eigen::Matrix3Xd& rest, int count, Young young) {
+  Chain c{Eigen::Matrix<int, 4, Eigen::Dynamic>(4, count), {}};
+  for (int e = 0; e < count; ++e) {
+    c.tets.col(e) << e, e + 1, e + 2, e + 3;
+    fem::Mat34 X;
+    for (int k = 0; k < 4; ++k) X.col(k) = rest.col(e + k);
+    c.elements.push_back(fem::restElement(fem::Method::Large, X, fem::Lame::fromYoungPoisson(young(e), 0.4)));
+  }
+  return c;
+}
+
 // Elements 0..14 of a chain sharing nodes (e uses nodes e .. e + 3). From element 0: 0..7 in
 // eight lanes (AVX-512) or two groups of four, 8..11 in four, 12..14 one by one; from element 1:
 // 1..3 and 12..14 one by one, 4..7 and 8..11 in four lanes.
@@ -76,14 +94,7 @@ TEST(VectorKernels, LargeForcesOfARangeMatchTheEigenKernel) {
   const int count = 15, nodes = count + 3;
   Eigen::Matrix3Xd rest(3, nodes);
   for (int i = 0; i < nodes; ++i) rest.col(i) = Eigen::Vector3d(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
-  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
-  std::vector<fem::ElementRest> elements;
-  for (int e = 0; e < count; ++e) {
-    tets.col(e) << e, e + 1, e + 2, e + 3;
-    fem::Mat34 X;
-    for (int k = 0; k < 4; ++k) X.col(k) = rest.col(e + k);
-    elements.push_back(fem::restElement(fem::Method::Large, X, fem::Lame::fromYoungPoisson(uniform(1e3, 1e5), 0.4)));
-  }
+  const auto [tets, elements] = chainOf(rest, count, [](int) { return uniform(1e3, 1e5); });
   const std::vector<double> lanes = fem::largeTetrahedraLanes(elements);
   Eigen::Matrix3Xd x = rest;
   for (int i = 0; i < 3 * nodes; ++i) x.data()[i] += uniform(-0.05, 0.05);
@@ -262,14 +273,7 @@ std::string kernelFingerprint() {
   Eigen::Matrix3Xd rest(3, nodes), x(3, nodes);
   for (int i = 0; i < 3 * nodes; ++i) rest.data()[i] = u(gen);
   for (int i = 0; i < 3 * nodes; ++i) x.data()[i] = rest.data()[i] + 0.05 * u(gen);
-  Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
-  std::vector<fem::ElementRest> elements;
-  for (int e = 0; e < count; ++e) {
-    tets.col(e) << e, e + 1, e + 2, e + 3;
-    fem::Mat34 X;
-    for (int k = 0; k < 4; ++k) X.col(k) = rest.col(e + k);
-    elements.push_back(fem::restElement(fem::Method::Large, X, fem::Lame::fromYoungPoisson(1e3 + 1e4 * (1 + u(gen)), 0.4)));
-  }
+  const auto [tets, elements] = chainOf(rest, count, [&](int) { return 1e3 + 1e4 * (1 + u(gen)); });
   Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, nodes);
   std::vector<Eigen::Matrix3d> R(count);
   fem::addLargeTetrahedraForces(x.data(), tets.data(), 0, count, elements, fem::largeTetrahedraLanes(elements), R.data(), f.data());
