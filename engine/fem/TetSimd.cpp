@@ -409,6 +409,19 @@ void invertedGeneric(const double* x, const int* tets, int first, int end, const
 }
 
 #if defined(__x86_64__)
+// Whether every lane is above zero (a NaN is not): one comparison, where a test per lane branched.
+__attribute__((target("avx2,fma"))) inline bool allPositive(const Lanes& v) {
+  __m256d m;
+  std::memcpy(&m, &v, sizeof m);
+  return _mm256_movemask_pd(_mm256_cmp_pd(m, _mm256_setzero_pd(), _CMP_GT_OQ)) == 0xf;
+}
+
+__attribute__((target("avx512f,avx512vl,fma"))) inline bool allPositive(const Lanes8& v) {
+  __m512d m;
+  std::memcpy(&m, &v, sizeof m);
+  return _mm512_cmp_pd_mask(m, _mm512_setzero_pd(), _CMP_GT_OQ) == 0xff;
+}
+
 // The groups of W elements (lanes of V) from `first` on while a whole group fits before `end`;
 // returns where they stop.
 template <class V, int W>
@@ -420,6 +433,7 @@ __attribute__((always_inline)) inline int invertedGroups(const double* x, const 
     loadPositions(x, tets, e, p);
     std::memcpy(&sg, sign + e, sizeof sg);
     orientedVolume(p, sg, v);
+    if (allPositive(v)) continue;
     for (int l = 0; l < W; ++l)
       if (!(v[l] > 0.0)) bad.push_back(e + l);
   }
