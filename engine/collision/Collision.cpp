@@ -865,19 +865,6 @@ void SurfaceCollisionModel::finishPenalty(State& s, const Eigen::Matrix3Xd& x) c
     c.force = c.active ? Eigen::Vector3d(c.k * (explicitPair(c) ? c.gap0 : c.gap(x)) * c.n) : Eigen::Vector3d::Zero();
 }
 
-double SurfaceCollisionModel::gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const {
-  double g = c.gap(x);
-  if (c.partner) {
-    const auto& theirs = c.partner->contacts(s);
-    if (c.mirror >= static_cast<int>(theirs.size()))
-      throw Error("contact state of '" + name() + "' names contact " + std::to_string(c.mirror) + " of '" +
-                  c.partner->name() + "', which has " + std::to_string(theirs.size()) + ": the state belongs to another run");
-    const Contact& m = theirs[c.mirror];
-    g += c.n.dot(m.point(c.partner->state_->x(s)) - m.p0);
-  }
-  return g;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Intersection and response settings
 

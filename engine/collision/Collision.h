@@ -183,10 +183,6 @@ class SurfaceCollisionModel : public Component, public ForceField, public Statef
   // Whether a solver moves the surface's body: a deformable body under an ODE solver, or a rigid
   // body with a mass, a solver in its node or above it, no driver and no prescribed velocity.
   bool integrated() const;
-  // The gap of contact c with this surface's body at x: its own linearised gap, plus, for a contact
-  // between two bodies, how far the other side has moved along the normal since detection (the
-  // constraint response's free motion moves both).
-  double gapAt(const State& s, const Contact& c, const Eigen::Matrix3Xd& x) const;
   // Fits the bounding-volume hierarchy of `s` to positions x; call before detect() when x changed.
   void refit(State& s, const Eigen::Matrix3Xd& x) const;
   // Contacts with `sphere` for the positions x (the tissue at the step start), as fitted.

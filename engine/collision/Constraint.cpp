@@ -566,10 +566,21 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   std::optional<Diverged> solvePairs(State& st, const CollisionPipeline* pipe, double mu, double h, int stepIndex,
                                      double time) const {
     std::vector<Pair> pairs;
+    // A rigid side of a contact is linearised about the body's pose at the step start, as SOFA
+    // maps its free motion to the surface: the arm r is the contact point at detection from the
+    // centre then (the free motion moved the centre by h v), and the point's free motion is
+    // h (v + w x r), not the turned point's (see freeMove below).
     auto attach = [&](Side& sd, const MechanicalObject* body, const RigidObject* rigid, const Component& who) {
       if (rigid) {
         sd.rigid = rigidCorrection(*rigid, who);
-        if (sd.rigid) sd.arm = sd.point(st) - sd.rigid->body().live(st).p;
+        if (!sd.rigid) return;
+        const RigidObject::Live& b = sd.rigid->body().live(st);
+        if (sd.surf) sd.arm = sd.c->p0 - (b.p - h * b.v);
+        else {
+          const double angle = h * b.w.norm();
+          sd.arm = sd.point(st) - b.p;
+          if (angle > 0) sd.arm = Eigen::AngleAxisd(-angle, b.w.normalized()) * sd.arm;
+        }
       } else if (body) {
         sd.deformable = &deformableCorrection(*body, who);
       }
@@ -588,6 +599,10 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
           if (!c.partner) continue;
           const int pi = indexOf(c.partner);
           if (std::make_pair(pi, c.mirror) < std::make_pair(si, ci)) continue;  // the pair is taken from its other side
+          if (c.mirror >= static_cast<int>(c.partner->contacts(st).size()))
+            throw Error("contact state of '" + a->name() + "' names contact " + std::to_string(c.mirror) + " of '" +
+                        c.partner->name() + "', which has " + std::to_string(c.partner->contacts(st).size()) +
+                        ": the state belongs to another run");
           Pair p;
           p.side[0].surf = a;
           p.side[0].c = &c;
@@ -660,7 +675,12 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       if (const BilateralConstraint* b = pairs[i].bilateral) {
         equality[i] = 1;
         R[i] = -Eigen::Matrix3d::Identity();
-        dfree[i] = B.point(st) - A.point(st) - b->rest(pairs[i].index);
+        const auto freePoint = [&](const Side& sd) -> Eigen::Vector3d {
+          if (!sd.rigid) return sd.point(st);
+          const RigidObject::Live& rb = sd.rigid->body().live(st);
+          return rb.p + sd.arm + h * rb.w.cross(sd.arm);
+        };
+        dfree[i] = freePoint(B) - freePoint(A) - b->rest(pairs[i].index);
         continue;
       }
       const Eigen::Vector3d& n = A.c->n;
@@ -668,9 +688,14 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
       R[i].row(0) = -n.transpose();
       R[i].row(1) = t1.transpose();
       R[i].row(2) = t2.transpose();
-      const Eigen::Vector3d moveA = A.point(st) - A.c->p0;
-      const Eigen::Vector3d moveB = B.point(st) - B.c->p0;
-      const double gap = A.surf->gapAt(st, *A.c, A.surf->mstate().x(st));
+      // The free motion of each side's point since detection, and the gap it leaves along n.
+      const auto freeMove = [&](const Side& sd) -> Eigen::Vector3d {
+        if (!sd.rigid) return sd.point(st) - sd.c->p0;
+        const RigidObject::Live& b = sd.rigid->body().live(st);
+        return h * (b.v + b.w.cross(sd.arm));
+      };
+      const Eigen::Vector3d moveA = freeMove(A), moveB = freeMove(B);
+      const double gap = A.c->gap0 - n.dot(moveA) + n.dot(moveB);
       const double slip = slipShare(A.c->gap0, gap, moveA.norm() + moveB.norm());
       dfree[i] = Eigen::Vector3d(gap, slip * t1.dot(moveA - moveB), slip * t2.dot(moveA - moveB));
     }

@@ -67,16 +67,44 @@ class LineIndex {
 ElementDesc parseRoot(const std::string& text, const std::string& file, ReadContext& rc, int depth);
 
 // Replaces every attribute called `a.name` in `el` and below by `a`; returns how many it replaced.
+// An include's attribute `attr` replaces `attr` wherever it is written; SOFA's `node__attr` only
+// in the elements named `node`.
 int replaceAttribute(ElementDesc& el, const AttrDesc& a) {
+  const size_t sep = a.name.find("__");
+  const std::string attr = sep == std::string::npos ? a.name : a.name.substr(sep + 2);
+  const AttrDesc* name = el.find("name");
+  const bool here = sep == std::string::npos || (name && name->value == a.name.substr(0, sep));
   int n = 0;
   for (auto& mine : el.attrs)
-    if (mine.name == a.name) {
+    if (here && mine.name == attr) {
       mine.value = a.value;
       mine.loc = a.loc;
       ++n;
     }
   for (auto& c : el.children) n += replaceAttribute(c, a);
   return n;
+}
+
+// SOFA's merge of an included root named "_Merge_" into the including element: its attributes
+// (but the name) set on it, each named child merged into the child of the same tag and name,
+// the others added.
+void mergeInto(ElementDesc& dest, ElementDesc&& src) {
+  for (const AttrDesc& a : src.attrs)
+    if (a.name != "name") dest.set(a.name, a.value, a.loc);
+  for (ElementDesc& child : src.children) {
+    const AttrDesc* name = child.find("name");
+    ElementDesc* match = nullptr;
+    if (name && !name->value.empty())
+      for (ElementDesc& d : dest.children) {
+        const AttrDesc* dn = d.find("name");
+        if (d.tag == child.tag && dn && dn->value == name->value) {
+          match = &d;
+          break;
+        }
+      }
+    if (match) mergeInto(*match, std::move(child));
+    else dest.children.push_back(std::move(child));
+  }
 }
 
 struct Converter {
@@ -149,8 +177,11 @@ struct Converter {
       }
       ElementDesc included = include(child, depth + 1);
       const AttrDesc* name = included.find("name");
-      if (included.tag == "Group" || (included.tag == "Node" && name && name->value == "Group"))
+      const std::string as = included.tag == "Node" && name ? name->value : "";
+      if (included.tag == "Group" || as == "Group" || as == "_Group_")
         for (auto& g : included.children) el.children.push_back(std::move(g));
+      else if (as == "_Merge_")
+        mergeInto(el, std::move(included));
       else
         el.children.push_back(std::move(included));
     }

@@ -13,9 +13,11 @@ namespace viscera::io {
 SceneDesc readScene(const std::string& path);
 // Parses scene text; `file` names it in messages and sets the folder for relative paths.
 // An `<include href="FILE" a="v" .../>` is replaced by FILE's root element as SOFA does: a root
-// named "Group" gives its children to the including node, any other root becomes a child node
-// (renamed by the include's `name`), and every other attribute of the include replaces the
-// attribute of that name wherever it is written in FILE.
+// named "Group" or "_Group_" gives its children to the including node, one named "_Merge_" is
+// merged into it (its attributes set there, each child merged into the child of the same tag and
+// name, the others added), any other root becomes a child node (the name is the include's `name`
+// when given, and decides the above), and every other attribute of the include replaces the
+// attribute of that name wherever it is written in FILE (`node__a` only in elements named node).
 SceneDesc parseSceneText(const std::string& text, const std::string& file);
 
 // SOFA's data search path for the scene `sceneFile`: the folders given with setDataPath (the

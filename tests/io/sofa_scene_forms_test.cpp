@@ -110,6 +110,43 @@ TEST(SofaSceneForms, IncludeOfANamedNodeAddsARenamedChildAndNotesUnmatchedAttrib
   EXPECT_TRUE(hasNote(*scene, "include.contactStiffness matches no attribute")) << scene->notes().size();
 }
 
+// SOFA's "_Merge_" include: the included root's attributes go to the including node and each named
+// child merges into the child of the same tag and name (as SOFA's Demos/include_test.scn merges a
+// force field into caduceus.scn's snake); "_Group_" gives the children; `node__a` replaces a only
+// in elements named node.
+TEST(SofaSceneForms, IncludeMergesGroupsAndReplacesPerNode) {
+  TempDir dir;
+  write(dir / "body.scn", R"(<Node name="root" dt="0.02">
+  <Node name="Snake"><MechanicalObject name="dofs" position="0 0 0"/></Node>
+  <Node name="Floor"><MechanicalObject name="floor" position="0 0 0"/></Node>
+</Node>)");
+  write(dir / "extra.xml", R"(<Node name="_Merge_" gravity="0 0 -9.8">
+  <Node name="Snake"><UniformMass name="mass" totalMass="2"/><MechanicalObject name="dofs" dy="1"/></Node>
+  <Node name="Other"/>
+</Node>)");
+  write(dir / "group.xml", R"(<Node name="whatever"><UniformMass name="a" totalMass="1"/><UniformMass name="b" totalMass="1"/></Node>)");
+  write(dir / "scene.scn", R"(<Node name="root">
+  <include href="body.scn" name="_Merge_" floor__position="1 2 3"/>
+  <include href="extra.xml"/>
+  <Node name="g"><include href="group.xml" name="_Group_" totalMass="5"/></Node>
+</Node>)");
+  const SceneDesc desc = io::readScene(dir / "scene.scn");
+  EXPECT_EQ(desc.root.find("name")->value, "root");
+  EXPECT_EQ(desc.root.find("dt")->value, "0.02");
+  EXPECT_EQ(desc.root.find("gravity")->value, "0 0 -9.8");
+  ASSERT_EQ(desc.root.children.size(), 4u);  // Snake, Floor, Other, g
+  const ElementDesc& snake = desc.element("Snake");
+  ASSERT_EQ(snake.children.size(), 2u);  // the MechanicalObject merged, the mass added
+  EXPECT_EQ(snake.children[0].find("position")->value, "0 0 0");
+  EXPECT_EQ(snake.children[0].find("dy")->value, "1");
+  EXPECT_EQ(snake.children[1].tag, "UniformMass");
+  EXPECT_EQ(desc.element("Floor/floor").find("position")->value, "1 2 3");
+  EXPECT_EQ(desc.element("Snake/dofs").find("position")->value, "0 0 0");  // only in "floor"
+  const ElementDesc& g = desc.element("g");
+  ASSERT_EQ(g.children.size(), 2u);
+  EXPECT_EQ(g.children[1].find("totalMass")->value, "5");
+}
+
 TEST(SofaSceneForms, IncludeErrorsNameTheFileAndLine) {
   TempDir dir;
   write(dir / "a.xml", R"(<Node name="A"><include href="b.xml"/></Node>)");
