@@ -850,6 +850,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     double last = 0;
     for (int it = 0; it < maxIt_; ++it) {
       double change = 0, scale = 1e-300;
+      double moved = 0;  // LCPConstraintSolver's measure: how far the sweep moved the contacts' points
       for (int i = 0; i < m; ++i) {
         Eigen::Vector3d d = dfree[i];
         for (int j = 0; j < m; ++j) d += W.block<3, 3>(3 * i, 3 * j) * lambda[j];
@@ -879,11 +880,14 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
         li.tail<2>() = lt;
         change = std::max(change, (li - lambda[i]).norm());
         scale = std::max(scale, li.norm());
+        moved += (Wii * (li - lambda[i])).norm();
         lambda[i] = li;
       }
       l.iterations = std::max(l.iterations, it + 1);
       last = change / scale;
-      if (last <= tol_) break;
+      // SOFA's LCPConstraintSolver stops on the summed displacement, below tolerance x (contacts + 1);
+      // its other solvers (as here otherwise) on the change of the forces.
+      if (lcp_ ? moved < tol_ * (m + 1) : last <= tol_) break;
     }
     l.residual = std::max(l.residual, last);  // the worst of the step's problems
   }
@@ -1000,10 +1004,13 @@ void registerConstraintContact(Registry& r) {
     s.doc = "Projected Gauss-Seidel on the Delassus operator of the contacts and bilateral constraints (3x3 block "
             "per contact pair or held pair of points): normal force >= 0 with zero gap when pushing, friction in the "
             "Coulomb cone, held points together. Stops when no force changes by more than tolerance x the largest "
-            "force, or after maxIterations. SOFA's other solvers of the same problem (UnbuiltGaussSeidel, NNCG) take "
+            "force (LCPConstraintSolver, as SOFA's: when a sweep moves the contacts' points by less than tolerance x "
+            "(contacts + 1) in all), or after maxIterations. SOFA's other solvers of the same problem (UnbuiltGaussSeidel, NNCG) take "
             "this one: they differ in how they iterate, not in the forces they converge to.";
     s.add(AttrSpec::integer("maxIterations").alias("maxIt").def("1000").atLeast(1).help("Gauss-Seidel sweeps at most"));
-    s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help("relative change of the contact forces to stop at"));
+    s.add(AttrSpec::real("tolerance").alias("tol").def("1e-8").above(0).help(
+        "relative change of the contact forces to stop at (LCPConstraintSolver: the sweep's summed displacement of "
+        "the contacts' points, below tolerance x (contacts + 1))"));
     s.add(AttrSpec::real("mu").atLeast(0).help(
         "friction coefficient: GenericConstraintSolver, when given, in place of the CollisionResponse's; "
         "LCPConstraintSolver (as SOFA's), for every contact whose response has friction (0.6 unless given)"));
