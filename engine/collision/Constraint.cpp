@@ -566,10 +566,11 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   std::optional<Diverged> solvePairs(State& st, const CollisionPipeline* pipe, double mu, double h, int stepIndex,
                                      double time) const {
     std::vector<Pair> pairs;
-    // A rigid side of a contact is linearised about the body's pose at the step start, as SOFA
-    // maps its free motion to the surface: the arm r is the contact point at detection from the
-    // centre then (the free motion moved the centre by h v), and the point's free motion is
-    // h (v + w x r), not the turned point's (see freeMove below).
+    // A rigid side is linearised about the body's pose at the step start, as SOFA maps its free
+    // motion to the points: the arm r is the point's then (a contact's point at detection from the
+    // centre, which the free motion moved by h v; a held point's arm turned back by the step's
+    // rotation), and the point's free motion is h (v + w x r), not the turned point's (freeMove,
+    // freePoint below).
     auto attach = [&](Side& sd, const MechanicalObject* body, const RigidObject* rigid, const Component& who) {
       if (rigid) {
         sd.rigid = rigidCorrection(*rigid, who);

@@ -66,9 +66,8 @@ class LineIndex {
 
 ElementDesc parseRoot(const std::string& text, const std::string& file, ReadContext& rc, int depth);
 
-// Replaces every attribute called `a.name` in `el` and below by `a`; returns how many it replaced.
-// An include's attribute `attr` replaces `attr` wherever it is written; SOFA's `node__attr` only
-// in the elements named `node`.
+// Replaces every attribute called `a.name` in `el` and below by `a` (SOFA's `node__attr`: `attr`
+// in the elements named `node` only); returns how many it replaced.
 int replaceAttribute(ElementDesc& el, const AttrDesc& a) {
   const size_t sep = a.name.find("__");
   const std::string attr = sep == std::string::npos ? a.name : a.name.substr(sep + 2);

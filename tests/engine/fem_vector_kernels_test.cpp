@@ -147,10 +147,10 @@ TEST(VectorKernels, VonMisesMatchesTheEigenKernel) {
   }
 }
 
-// 13 elements (eight in lanes or two groups of four, a group of four, one alone), some turned
-// inside out by moving a node through node 0, one with no volume.
+// 25 elements (three groups of eight, or six of four, then one alone), some turned inside out by
+// moving a node through node 0, one with no volume, one not a number; the last group has none.
 TEST(VectorKernels, InvertedElementsAreTheOnesWithTheOtherOrientation) {
-  const int count = 25;  // groups of eight (the last with none inverted), then one left over
+  const int count = 25;
   Eigen::Matrix3Xd x(3, 4 * count);
   Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
   std::vector<fem::ElementRest> elements;
@@ -191,7 +191,7 @@ TEST(VectorKernels, TheVectorVersionsRunWhereTheCpuHasThem) {
 // Eigen kernel, so that the health check can name it.
 TEST(VectorKernels, ACollapsedElementHasFiniteForces) {
   const fem::ElementRest e = fem::restElement(fem::Method::Large, randomTetrahedron(), fem::Lame::fromYoungPoisson(1e3, 0.3));
-  const int count = 25;  // groups of eight (the last with none inverted), then one left over  // eight lanes or two groups of four, a group of four, one alone
+  const int count = 13;  // eight lanes or two groups of four, a group of four, one alone
   const std::vector<fem::ElementRest> rest(count, e);
   const std::vector<double> lanes = fem::largeTetrahedraLanes(rest);
   Eigen::Matrix<int, 4, Eigen::Dynamic> tets(4, count);
