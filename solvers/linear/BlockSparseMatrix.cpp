@@ -396,9 +396,11 @@ void BlockSparseMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   if (upper()) {
     const UpperPattern A{rowStart_.data(), held_ ? rowEnd_.data() : rowStart_.data() + 1, cols_.data(), values_.data(), colStart_.data(),
                          colBlocks_.data(), n_};
-    const bool oneThread = tbb::this_task_arena::max_concurrency() == 1 ||
-                           tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) == 1;
-    if (n_ < 512 || oneThread) {
+    const size_t threads = std::min(static_cast<size_t>(tbb::this_task_arena::max_concurrency()),
+                                    tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+    // On two threads the gather (each block read for its row and again for its column) is no
+    // faster than one thread's scatter, which reads it once: it pays from three threads on.
+    if (n_ < 512 || threads < 3) {
       k.scatter(A, x.data(), y.data(), 0, n_, xDotY);
       return;
     }

@@ -203,7 +203,7 @@ TEST(BlockSparseMatrix, ConstrainNodesGivesIdentityRowsAndColumns) {
 // Upper storage: the blocks on and above the diagonal only (slot -1 below), the same matrix as
 // the full storage (toDense, exactly), and the product of the symmetric matrix to round-off. The
 // one-thread product (rows and transposed columns in one sweep) and the threaded one (each row
-// gathering its column) give the same result to the bit.
+// gathering its column; from three threads on) give the same result to the bit.
 TEST(BlockSparseMatrixUpper, PatternAndProductOfTheSymmetricMatrix) {
   using Storage = BlockSparseMatrix::Storage;
   for (int n : {40, 700}) {
@@ -223,8 +223,8 @@ TEST(BlockSparseMatrixUpper, PatternAndProductOfTheSymmetricMatrix) {
       arena.execute([&] { s.A.multiply(x, one); });
     }
     {
-      tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);  // also on a one-core machine
-      tbb::task_arena arena(2);
+      tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 4);  // also on a machine with fewer cores
+      tbb::task_arena arena(4);
       arena.execute([&] { s.A.multiply(x, two); });
     }
     EXPECT_LT((one - s.dense * x).norm(), 1e-13 * (s.dense * x).norm()) << "n = " << n;
@@ -253,9 +253,10 @@ TEST(BlockSparseMatrixUpper, ConstraintsAsOnTheFullStorage) {
 }
 
 // After constrainNodes the upper-storage product skips the held rows' other blocks (all zero):
-// the product of the constrained matrix, on one thread and on two, to the bit alike, and x . y
-// from the product's sweep equal to the separate one to round-off and the same on any thread
-// count. A block written after the constraint is multiplied again (the skip ends with the write).
+// the product of the constrained matrix, on one thread and on four (the gathering product), to
+// the bit alike, and x . y from the product's sweep equal to the separate one to round-off and the
+// same on any thread count. A block written after the constraint is multiplied again (the skip
+// ends with the write).
 TEST(BlockSparseMatrixUpper, ProductOfTheConstrainedMatrixAndItsDot) {
   using Storage = BlockSparseMatrix::Storage;
   for (int n : {40, 700}) {
@@ -272,8 +273,8 @@ TEST(BlockSparseMatrixUpper, ProductOfTheConstrainedMatrixAndItsDot) {
       arena.execute([&] { s.A.multiply(x, one, &dotOne); });
     }
     {
-      tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 2);
-      tbb::task_arena arena(2);
+      tbb::global_control allow(tbb::global_control::max_allowed_parallelism, 4);
+      tbb::task_arena arena(4);
       arena.execute([&] { s.A.multiply(x, two, &dotTwo); });
     }
     EXPECT_LT((one - D * x).norm(), 1e-13 * (D * x).norm()) << "n = " << n;
