@@ -306,12 +306,12 @@ __attribute__((target("avx2,fma"), always_inline)) inline void blocksAvx2(const 
 // Elements [first, first + count): one call per run, so no call per element.
 __attribute__((target("avx2,fma"))) void blocksRangeAvx2(const ElementRest* rest, const double* R, const int* slots, int first,
                                                          int count, double kFactor, double* values,
-    const std::uint16_t* firstWriter) {
+                                                         const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
     blocksAvx2(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
-                 firstWriter ? firstWriter[e] : std::uint16_t{0});
+               firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 
@@ -362,24 +362,23 @@ __attribute__((target("avx512f,avx512vl,fma"), always_inline)) inline void block
 
 __attribute__((target("avx512f,avx512vl,fma"))) void blocksRangeAvx512(const ElementRest* rest, const double* R, const int* slots,
                                                                       int first, int count, double kFactor, double* values,
-    const std::uint16_t* firstWriter) {
+                                                                      const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
     blocksAvx512(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
-                 firstWriter ? firstWriter[e] : std::uint16_t{0});
+               firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 #endif
 
 void blocksRangeGeneric(const ElementRest* rest, const double* R, const int* slots, int first, int count, double kFactor,
-                        double* values,
-    const std::uint16_t* firstWriter) {
+                        double* values, const std::uint16_t* firstWriter) {
   for (int e = first; e < first + count; ++e) {
     const ElementRest& r = rest[e];
     const double a = -kFactor * r.volume;
     blocksGeneric(R + 9 * static_cast<long>(e), r.G.data(), a * r.lame.lambda, a * r.lame.mu, values, slots + 16 * static_cast<long>(e),
-                 firstWriter ? firstWriter[e] : std::uint16_t{0});
+               firstWriter ? firstWriter[e] : std::uint16_t{0});
   }
 }
 

@@ -189,10 +189,18 @@ void TetrahedronFEMForceField::addStiffness(const State& s, BlockSparseMatrix& K
     });
     return;
   }
-  // Blocks -V times the law's coupling of the rotated gradients h = R^T G (Lame::coupling,
-  // written out on plain arrays, vectorised where the CPU allows: this loop is a fifth of a step).
+  assembleBlocks(l, K, kFactor, nullptr);
+}
+
+// Blocks -V times the law's coupling of the rotated gradients h = R^T G (Lame::coupling, written
+// out on plain arrays, vectorised where the CPU allows: this loop is a fifth of a step), added, or
+// set at the slots' first writers (firstWriter).
+void TetrahedronFEMForceField::assembleBlocks(const Live& l, BlockSparseMatrix& K, double kFactor,
+                                              const std::uint16_t* firstWriter) const {
+  const auto& slots = slots_[K.upper()];
+  double* values = K.values();
   forEachColoredRun(*colors_, [&](int first, int count) {
-    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, K.values());
+    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, values, firstWriter);
   });
 }
 
@@ -201,12 +209,8 @@ bool TetrahedronFEMForceField::setStiffness(const State& s, BlockSparseMatrix& K
   if ((exact_ && method_ != fem::Method::Small) || slots.size() != static_cast<size_t>(tets_.cols()) ||
       firstWriter_[K.upper()].size() != slots.size())
     return false;
-  double* values = K.values();
-  for (int b : unwritten_[K.upper()]) std::fill_n(values + 9 * static_cast<long>(b), 9, 0.0);
-  const Live& l = live(s);
-  forEachColoredRun(*colors_, [&](int first, int count) {
-    fem::addTetrahedraBlocks(rest_, l.rot.data(), slots.data(), first, count, kFactor, values, firstWriter_[K.upper()].data());
-  });
+  for (int b : unwritten_[K.upper()]) std::fill_n(K.values() + 9 * static_cast<long>(b), 9, 0.0);
+  assembleBlocks(live(s), K, kFactor, firstWriter_[K.upper()].data());
   return true;
 }
 

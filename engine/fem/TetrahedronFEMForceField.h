@@ -66,6 +66,7 @@ class TetrahedronFEMForceField : public Component, public ForceField, public Sta
  private:
   fem::Mat34 gather(const Eigen::Matrix3Xd& x, int e) const;
   fem::Mat12 stiffnessOf(const Live& l, int e) const;
+  void assembleBlocks(const Live& l, BlockSparseMatrix& K, double kFactor, const std::uint16_t* firstWriter) const;
   Live& live(State& s) const { return stateIn<Live>(s); }
   const Live& live(const State& s) const { return stateIn<Live>(s); }
 
