@@ -20,6 +20,7 @@
 #include "core/Text.h"
 #include "engine/Run.h"
 #include "engine/Simulation.h"
+#include "engine/collision/Collision.h"
 #include "engine/mechanics/MechanicalObject.h"
 #include "engine/rigid/RigidObject.h"
 #include "io/scene/SceneReader.h"
@@ -220,6 +221,68 @@ double meanAbsDiff(const std::vector<double>& a, const std::vector<double>& b, i
   return a.empty() ? 0.0 : s / static_cast<double>(a.size());
 }
 
+// SOFA's criterion for recorded states against per-object frames (the references, or another
+// run's states), with the largest node distance; `problem` names a time the run does not reach
+// or a size that differs.
+struct Comparison {
+  double error = 0, maxDistance = 0;
+  int objects = 0;
+  std::string problem;
+};
+
+Comparison compare(const std::vector<const Component*>& objects, const StateRecorder& recorder,
+                   const std::vector<std::vector<ReferenceFrame>>& refs, bool lastOnly, const RunResult& run) {
+  Comparison c;
+  double total = 0;
+  for (size_t o = 0; o < objects.size(); ++o) {
+    double sum = 0;
+    int compared = 0;
+    for (const auto& f : refs[o]) {
+      if (lastOnly && &f != &refs[o].back()) continue;
+      auto it = recorder.states.end();
+      for (auto s = recorder.states.begin(); s != recorder.states.end(); ++s)
+        if (std::abs(s->first - f.t) <= 1e-9 * std::max(1.0, std::abs(f.t))) it = s;
+      if (it == recorder.states.end()) {
+        c.problem = "the reference has a state at t = " + formatNumber(f.t) + ", which the run (" + std::to_string(run.steps) +
+                    " steps of " + formatNumber(run.dt) + ") does not reach";
+        return c;
+      }
+      const auto& [x, v] = it->second[o];
+      if (x.size() != f.x.size() || (!f.v.empty() && v.size() != f.v.size())) {
+        c.problem = "'" + objects[o]->name() + "' has " + std::to_string(x.size()) + " position values here, " +
+                    std::to_string(f.x.size()) + " in the reference";
+        return c;
+      }
+      const int stride = dynamic_cast<const RigidObject*>(objects[o]) ? 7 : 3;
+      const double nodes = std::max<double>(1.0, static_cast<double>(x.size() / stride));
+      sum += (meanAbsDiff(x, f.x, f.digits) + (f.v.empty() ? 0.0 : meanAbsDiff(v, f.v, f.digits))) / nodes;
+      for (size_t i = 0; i + 2 < x.size(); i += stride) {
+        const double dx = x[i] - f.x[i], dy = x[i + 1] - f.x[i + 1], dz = x[i + 2] - f.x[i + 2];
+        c.maxDistance = std::max(c.maxDistance, std::sqrt(dx * dx + dy * dy + dz * dz));
+      }
+      ++compared;
+    }
+    total += sum;
+    c.objects += compared > 0;
+  }
+  c.error = c.objects ? total / c.objects : 0.0;
+  return c;
+}
+
+// A run's recorded states as frames to compare another run with (at full precision).
+std::vector<std::vector<ReferenceFrame>> recorded(const StateRecorder& recorder, size_t objects) {
+  std::vector<std::vector<ReferenceFrame>> frames(objects);
+  for (const auto& [t, row] : recorder.states)
+    for (size_t o = 0; o < objects && o < row.size(); ++o) {
+      ReferenceFrame f;
+      f.t = t;
+      f.x = row[o].first;
+      f.v = row[o].second;
+      frames[o].push_back(std::move(f));
+    }
+  return frames;
+}
+
 }  // namespace
 
 const char* statusName(SuiteResult::Status s) {
@@ -319,7 +382,8 @@ std::vector<ReferenceFrame> readStateDump(const std::string& path) {
   return frames;
 }
 
-SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry& entry, const std::string& examplesDir) {
+SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry& entry, const std::string& examplesDir,
+                               int orderRuns) {
   SuiteResult r;
   r.scene = entry.scene;
   r.epsilon = entry.epsilon;
@@ -328,7 +392,7 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
   const std::vector<DumpFile> dumps = referenceDumps(list.referenceDir, entry.scene);
   try {
     auto scene = loadScene((fs::path(examplesDir) / entry.scene).string());
-    Simulation sim(*scene);
+    scene->init();  // the scene's own errors before its references'
     if (dumps.empty()) {
       r.status = SuiteResult::Status::NoReference;
       r.detail = "no " + entry.scene + ".reference_*_mstate.txt.gz in " + list.referenceDir;
@@ -373,12 +437,20 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
     std::vector<double> times;
     for (const auto& f : refs.front())
       if (!entry.lastOnly || &f == &refs.front().back()) times.push_back(f.t);
+    // One run from the start, the constraint solve visiting its constraints in an order drawn from
+    // `seed` (0: as built).
+    auto runOnce = [&](std::uint64_t seed, StateRecorder& recorder) {
+      Simulation once(*scene);
+      if (seed)
+        for (const ConstraintSolver* solver : scene->all<ConstraintSolver>()) solver->shuffleOrder(once.state(), seed);
+      RunOptions ro;
+      ro.steps = entry.steps;
+      ro.recordWrench = false;
+      ro.observers.push_back(&recorder);
+      return viscera::run(once, ro);
+    };
     StateRecorder recorder(objects, times);
-    RunOptions ro;
-    ro.steps = entry.steps;
-    ro.recordWrench = false;
-    ro.observers.push_back(&recorder);
-    const RunResult run = viscera::run(sim, ro);
+    const RunResult run = runOnce(0, recorder);
     r.steps = run.steps;
     if (run.failure) {
       r.status = SuiteResult::Status::Diverged;
@@ -386,44 +458,36 @@ SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry
       r.seconds = elapsed();
       return r;
     }
-    double total = 0;
-    for (size_t o = 0; o < objects.size(); ++o) {
-      double sum = 0;
-      int compared = 0;
-      for (const auto& f : refs[o]) {
-        if (entry.lastOnly && &f != &refs[o].back()) continue;
-        auto it = recorder.states.end();
-        for (auto s = recorder.states.begin(); s != recorder.states.end(); ++s)
-          if (std::abs(s->first - f.t) <= 1e-9 * std::max(1.0, std::abs(f.t))) it = s;
-        if (it == recorder.states.end()) {
-          r.status = SuiteResult::Status::Error;
-          r.detail = "the reference has a state at t = " + formatNumber(f.t) + ", which the run (" +
-                     std::to_string(run.steps) + " steps of " + formatNumber(run.dt) + ") does not reach";
-          r.seconds = elapsed();
-          return r;
-        }
-        const auto& [x, v] = it->second[o];
-        if (x.size() != f.x.size() || (!f.v.empty() && v.size() != f.v.size())) {
-          r.status = SuiteResult::Status::Error;
-          r.detail = "'" + objects[o]->name() + "' has " + std::to_string(x.size()) + " position values here, " +
-                     std::to_string(f.x.size()) + " in the reference";
-          r.seconds = elapsed();
-          return r;
-        }
-        const int stride = dynamic_cast<const RigidObject*>(objects[o]) ? 7 : 3;
-        const double nodes = std::max<double>(1.0, static_cast<double>(x.size() / stride));
-        sum += (meanAbsDiff(x, f.x, f.digits) + (f.v.empty() ? 0.0 : meanAbsDiff(v, f.v, f.digits))) / nodes;
-        for (size_t i = 0; i + 2 < x.size(); i += stride) {
-          const double dx = x[i] - f.x[i], dy = x[i + 1] - f.x[i + 1], dz = x[i + 2] - f.x[i + 2];
-          r.maxDistance = std::max(r.maxDistance, std::sqrt(dx * dx + dy * dy + dz * dz));
-        }
-        ++compared;
-      }
-      total += sum;
-      r.objects += compared > 0;
+    const Comparison c = compare(objects, recorder, refs, entry.lastOnly, run);
+    if (!c.problem.empty()) {
+      r.status = SuiteResult::Status::Error;
+      r.detail = c.problem;
+      r.seconds = elapsed();
+      return r;
     }
-    r.sofaError = r.objects ? total / r.objects : 0.0;
+    r.sofaError = c.error;
+    r.maxDistance = c.maxDistance;
+    r.objects = c.objects;
     r.status = r.sofaError <= entry.epsilon ? SuiteResult::Status::Passed : SuiteResult::Status::Differs;
+    // The same scene with its constraints in other orders, against SOFA and against this run.
+    if (orderRuns > 0 && !scene->all<ConstraintSolver>().empty()) {
+      const std::vector<std::vector<ReferenceFrame>> ours = recorded(recorder, objects.size());
+      r.orderErrorMin = r.orderErrorMax = r.sofaError;
+      for (int k = 1; k <= orderRuns; ++k) {
+        StateRecorder again(objects, times);
+        const RunResult other = runOnce(static_cast<std::uint64_t>(k), again);
+        if (other.failure) {  // said beside the figures, which stand for the orders run
+          r.detail = "in constraint order " + std::to_string(k) + " the run fails: " + other.failure->str();
+          break;
+        }
+        const Comparison toSofa = compare(objects, again, refs, entry.lastOnly, other);
+        const Comparison toThis = compare(objects, again, ours, entry.lastOnly, other);
+        r.orderErrorMin = std::min(r.orderErrorMin, toSofa.error);
+        r.orderErrorMax = std::max(r.orderErrorMax, toSofa.error);
+        r.orderSpread = std::max(r.orderSpread, toThis.error);
+        ++r.orderRuns;
+      }
+    }
   } catch (const Error& e) {
     classifyError(e, r);
   } catch (const std::exception& e) {  // one scene's fault must not end the suite

@@ -59,11 +59,19 @@ struct SuiteResult {
   // over the compared steps and objects, and how many objects were compared.
   double sofaError = 0, epsilon = 0, maxDistance = 0;
   int objects = 0;
+  // With orderRuns > 0: the scene run again that many times, its constraint solve visiting the
+  // constraints in other orders (ConstraintSolver::shuffleOrder). SOFA's criterion against the
+  // reference over all runs (this one included), and the largest it gives between this run and
+  // another: how far the order of the solver's sweeps alone moves the result.
+  int orderRuns = 0;
+  double orderErrorMin = 0, orderErrorMax = 0, orderSpread = 0;
 };
 const char* statusName(SuiteResult::Status s);
 
-// Loads and runs one regression scene and compares it with its references.
-SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry& entry, const std::string& examplesDir);
+// Loads and runs one regression scene and compares it with its references; a scene with a
+// constraint solver is then run `orderRuns` more times with its constraints in other orders.
+SuiteResult runRegressionScene(const RegressionList& list, const RegressionEntry& entry, const std::string& examplesDir,
+                               int orderRuns = 0);
 // Loads one scene and runs it `steps` steps (the examples check).
 SuiteResult runExampleScene(const std::string& path, int steps);
 

@@ -27,6 +27,7 @@ struct SuiteOptions {
   std::string examples, list, regressionDir, filter, csv;
   bool examplesMode = false, requirePass = false;
   int steps = 20;
+  int orderRuns = 0;
 };
 
 std::string figure(double v) {
@@ -53,19 +54,24 @@ int runSuite(const SuiteOptions& o) {
   }
   std::vector<SuiteResult> results;
   std::ostringstream csv;
-  csv << "scene,status,detail,steps,seconds,sofa_error,epsilon,max_distance,objects\n";
+  csv << "scene,status,detail,steps,seconds,sofa_error,epsilon,max_distance,objects,order_runs,order_error_min,"
+         "order_error_max,order_spread\n";
   auto report = [&](const SuiteResult& r, const std::string& shown) {
     std::string line = shown + "  " + study::statusName(r.status);
     if (r.status == SuiteResult::Status::Passed || r.status == SuiteResult::Status::Differs)
       line += "  error " + figure(r.sofaError) + " (limit " + figure(r.epsilon) + "), largest node distance " +
               figure(r.maxDistance) + ", " + std::to_string(r.objects) + " object(s)";
+    if (r.orderRuns > 0)
+      line += "; in " + std::to_string(r.orderRuns + 1) + " constraint orders error " + figure(r.orderErrorMin) + " to " +
+              figure(r.orderErrorMax) + ", apart from this run by up to " + figure(r.orderSpread);
     if (!r.detail.empty()) line += "  " + printable(r.detail.substr(0, r.detail.find('\n')));
     line += "  [" + figure(r.seconds) + " s]";
     std::printf("%s\n", line.c_str());
     std::fflush(stdout);
     csv << csvField(shown) << "," << study::statusName(r.status) << "," << csvField(r.detail) << "," << r.steps << ","
         << formatNumber(r.seconds) << "," << formatNumber(r.sofaError) << "," << formatNumber(r.epsilon) << ","
-        << formatNumber(r.maxDistance) << "," << r.objects << "\n";
+        << formatNumber(r.maxDistance) << "," << r.objects << "," << r.orderRuns << "," << formatNumber(r.orderErrorMin) << ","
+        << formatNumber(r.orderErrorMax) << "," << formatNumber(r.orderSpread) << "\n";
     results.push_back(r);
   };
 
@@ -88,7 +94,7 @@ int runSuite(const SuiteOptions& o) {
     const study::RegressionList list = study::readRegressionList(listPath, regressionDir);
     for (const auto& e : list.entries) {
       if (!std::regex_search(e.scene, filter)) continue;
-      report(study::runRegressionScene(list, e, o.examples), e.scene);
+      report(study::runRegressionScene(list, e, o.examples, o.orderRuns), e.scene);
     }
   }
 
@@ -127,6 +133,10 @@ void addSofaSuiteCommand(CLI::App& app, std::function<int()>& action) {
       "differs, needs COMPONENT, error, diverged or no reference; the largest node distance is printed beside it.\n"
       "The references are found from the list's $REGRESSION_DIR line: --regression-dir, else the environment variable\n"
       "REGRESSION_DIR, else the folder `regression` beside EXAMPLES.\n"
+      "--order-spread K: each regression scene with a constraint solver is run K more times, its Gauss-Seidel sweeps\n"
+      "visiting the constraints in other (seeded) orders; the line adds SOFA's criterion over all those runs and the\n"
+      "largest it gives between this run and another. Where the solve stops before it converges the result depends on\n"
+      "that order, which SOFA sets by its own bookkeeping: a difference within the spread is the solver's, not the model's.\n"
       "--examples: every .scn/.xml scene under EXAMPLES (include fragments left out) is loaded and run --steps steps.\n"
       "Files the scenes name are found as SOFA finds them (scene folder, then the data search path). Outputs the\n"
       "scenes write (exporters) go to a temporary folder.");
@@ -135,6 +145,8 @@ void addSofaSuiteCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("--regression-dir", o->regressionDir, "the folder $REGRESSION_DIR stands for in the list");
   cmd->add_flag("--examples", o->examplesMode, "load and run every example scene instead of the regression list");
   cmd->add_option("--steps", o->steps, "steps per example scene (20)")->check(CLI::Range(0, 1000000));
+  cmd->add_option("--order-spread", o->orderRuns, "run scenes with constraints K more times in other constraint orders (0)")
+      ->check(CLI::Range(0, 1000));
   cmd->add_option("--filter", o->filter, "only scenes whose path matches this regular expression");
   cmd->add_option("--csv", o->csv, "also write the table as CSV");
   cmd->add_flag("--require-pass", o->requirePass, "exit 1 unless every scene run passed (or, with --examples, ran)");

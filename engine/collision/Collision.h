@@ -24,6 +24,7 @@
 // moves its body) takes its side without moving.
 #pragma once
 
+#include <cstdint>
 #include <Eigen/Core>
 #include <array>
 #include <initializer_list>
@@ -363,6 +364,11 @@ class ConstraintSolver {
                                         double time) const = 0;
   virtual int lastIterations(const State& s) const = 0;
   virtual double lastResidual(const State& s) const = 0;
+  // From now on in `s`, each step's Gauss-Seidel sweeps visit the constraints in an order drawn
+  // from `seed` and the step (0: the order they were built in). Where the solve stops before it
+  // converges, the result depends on that order, which SOFA sets by its own bookkeeping; this
+  // measures how much (viscera sofa-suite --order-spread).
+  virtual void shuffleOrder(State& s, std::uint64_t seed) const = 0;
 };
 
 }  // namespace viscera

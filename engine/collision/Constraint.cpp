@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
+#include <random>
 #include <unordered_map>
 
 #include "engine/MechanicalSystem.h"
@@ -456,13 +457,16 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   struct Live : ComponentStateOf<Live> {
     int iterations = 0;
     double residual = 0;
+    std::uint64_t orderSeed = 0;  // shuffleOrder's seed; 0: the constraints in the order built
     void save(StateWriter& out) const override {
       out.put(iterations);
       out.put(residual);
+      out.put(orderSeed);
     }
     void load(StateReader& in) override {
       in.get(iterations);
       in.get(residual);
+      in.get(orderSeed);
     }
   };
   std::unique_ptr<ComponentState> initialState() const override { return std::make_unique<Live>(); }
@@ -513,6 +517,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
   }
   int lastIterations(const State& s) const override { return stateIn<Live>(s).iterations; }
   double lastResidual(const State& s) const override { return stateIn<Live>(s).residual; }
+  void shuffleOrder(State& s, std::uint64_t seed) const override { stateIn<Live>(s).orderSeed = seed; }
 
  private:
   bool hasAnimationLoop() const {
@@ -643,6 +648,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     }
     if (pairs.empty()) return std::nullopt;
     Live& l = stateIn<Live>(st);
+    reorder(l, stepIndex, pairs);
     const int m = static_cast<int>(pairs.size());
     std::unordered_map<const void*, ConstraintCorrection::Live*> deformableLive;
     std::unordered_map<const void*, Eigen::Matrix<double, 6, 6>> rigidC;
@@ -893,6 +899,15 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     l.residual = std::max(l.residual, last);  // the worst of the step's problems
   }
 
+  // The constraints in the order the state asks for: as built, or shuffled by its seed and the
+  // step (so that a state restored mid-run continues the same way).
+  template <class T>
+  static void reorder(const Live& l, int stepIndex, std::vector<T>& items) {
+    if (l.orderSeed == 0) return;
+    std::mt19937_64 rng(l.orderSeed * 0x9E3779B97F4A7C15ull + static_cast<std::uint64_t>(stepIndex));
+    std::shuffle(items.begin(), items.end(), rng);
+  }
+
   std::optional<Diverged> solveBody(State& st, const SurfaceCollisionModel& surf, const ConstraintCorrection& cc,
                                     double mu, double h, int stepIndex, double time) const {
     Live& l = stateIn<Live>(st);
@@ -902,6 +917,7 @@ class GenericConstraintSolver : public Component, public ConstraintSolver, publi
     std::vector<Contact*> cs;
     for (Contact& c : surf.contacts(st))
       if (c.sphere) cs.push_back(&c);
+    reorder(l, stepIndex, cs);
     const int m = static_cast<int>(cs.size());
     ConstraintCorrection::Live& ccl = cc.prepare(st, h);
     // Rows R_i = [-n^T; t1^T; t2^T] acting on the contact point.
