@@ -143,10 +143,12 @@ void addSofaSuiteCommand(CLI::App& app, std::function<int()>& action) {
   cmd->add_option("examples", o->examples, "SOFA's examples folder")->required();
   cmd->add_option("--list", o->list, "the regression list (default: EXAMPLES/RegressionStateScenes.regression-tests)");
   cmd->add_option("--regression-dir", o->regressionDir, "the folder $REGRESSION_DIR stands for in the list");
-  cmd->add_flag("--examples", o->examplesMode, "load and run every example scene instead of the regression list");
+  auto* examplesFlag =
+      cmd->add_flag("--examples", o->examplesMode, "load and run every example scene instead of the regression list");
   cmd->add_option("--steps", o->steps, "steps per example scene (20)")->check(CLI::Range(0, 1000000));
   cmd->add_option("--order-spread", o->orderRuns, "run scenes with constraints K more times in other constraint orders (0)")
-      ->check(CLI::Range(0, 1000));
+      ->check(CLI::Range(0, 1000))
+      ->excludes(examplesFlag);
   cmd->add_option("--filter", o->filter, "only scenes whose path matches this regular expression");
   cmd->add_option("--csv", o->csv, "also write the table as CSV");
   cmd->add_flag("--require-pass", o->requirePass, "exit 1 unless every scene run passed (or, with --examples, ran)");

@@ -237,6 +237,9 @@ TEST(Cli, OptionErrorsExitTwo) {
   EXPECT_EQ(runViscera({"run", kBeam, "--steps", "many", "--out", tmp / "o"}).rc, 2);
   EXPECT_EQ(runViscera({"run", kBeam, "--threads", "0", "--out", tmp / "o"}).rc, 2);
   EXPECT_TRUE(absentOrEmpty(tmp.path() / "o"));
+  // The constraint-order spread is for the regression list, not the examples check.
+  EXPECT_EQ(runViscera({"sofa-suite", tmp.path().string(), "--examples", "--order-spread", "2"}).rc, 2);
+  EXPECT_EQ(runViscera({"sofa-suite", tmp.path().string(), "--order-spread", "-1"}).rc, 2);
   EXPECT_EQ(runViscera({"--help"}).rc, 0);
 }
 
