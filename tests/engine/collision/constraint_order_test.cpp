@@ -16,6 +16,9 @@ using namespace viscera;
 
 namespace {
 
+// The twelve outward triangles of a box whose corners are numbered x + 2 y + 4 z (0 or 1 each).
+const std::string kBoxTriangles = "0 2 1  1 2 3  4 5 6  5 7 6  0 1 4  1 5 4  2 6 3  3 6 7  0 4 2  2 4 6  1 3 5  3 7 5";
+
 // `solver`: the GenericConstraintSolver's attributes.
 std::string scene(const std::string& solver) {
   return R"(<Node name="root" dt="0.01" gravity="0 0 -9.81">
@@ -26,7 +29,7 @@ std::string scene(const std::string& solver) {
   <CollisionResponse response="FrictionContactConstraint" responseParams="mu=0"/>
   <Node name="block">
     <MeshTopology position="-1 -1 -1  1 -1 -1  -1 1 -1  1 1 -1  -1 -1 0  1 -1 0  -1 1 0  1 1 0"
-                  triangles="0 2 1  1 2 3  4 5 6  5 7 6  0 1 4  1 5 4  2 6 3  3 6 7  0 4 2  2 4 6  1 3 5  3 7 5"/>
+                  triangles=")" + kBoxTriangles + R"("/>
     <MechanicalObject/>
     <TriangleCollisionModel simulated="0" moving="0"/>
     <LineCollisionModel simulated="0" moving="0"/>
@@ -40,7 +43,7 @@ std::string scene(const std::string& solver) {
     <UncoupledConstraintCorrection/>
     <Node name="surface">
       <MeshTopology position="-0.2 -0.2 -0.2  0.2 -0.2 -0.2  -0.2 0.2 -0.2  0.2 0.2 -0.2  -0.2 -0.2 0.2  0.2 -0.2 0.2  -0.2 0.2 0.2  0.2 0.2 0.2"
-                    triangles="0 2 1  1 2 3  4 5 6  5 7 6  0 1 4  1 5 4  2 6 3  3 6 7  0 4 2  2 4 6  1 3 5  3 7 5"/>
+                    triangles=")" + kBoxTriangles + R"("/>
       <MechanicalObject/>
       <TriangleCollisionModel/>
       <LineCollisionModel/>
